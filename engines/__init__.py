@@ -1,0 +1,1 @@
+"""Built-in cleaning engines, registered through the ``mocap_workbench.engines`` entry points."""

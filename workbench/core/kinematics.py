@@ -1,0 +1,115 @@
+"""Forward and inverse kinematics, vectorised over frames.
+
+Units: positions in the skeleton's file unit, angles in degrees. FK loops over joints
+(J <= ~60) and is vectorised over frames. IK solves joint angles from joint positions
+with the skeleton's bone lengths kept exactly: each joint's world rotation is the
+rotation that best maps its rest child offsets onto the target child directions
+(Kabsch); where a joint has a single child, the twist about that bone cannot be seen in
+positions and is taken from a reference motion (or zero).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .rotations import euler_to_matrix, kabsch, matrix_to_euler, nearest_euler, vectors_to_rotation
+from .skeleton import Skeleton
+
+
+def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray) -> np.ndarray:
+    """(F, J, 3, 3) local rotation matrices from Euler angles (F, J, 3)."""
+    out = np.empty(angles_deg.shape[:-1] + (3, 3))
+    orders = skeleton.rotation_orders
+    for order in set(orders):
+        idx = [j for j, o in enumerate(orders) if o == order]
+        out[:, idx] = euler_to_matrix(angles_deg[:, idx], order)
+    return out
+
+
+def forward_kinematics(
+    skeleton: Skeleton, root_positions: np.ndarray, angles_deg: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """World joint positions (F, J, 3) and world rotations (F, J, 3, 3)."""
+    R_local = local_rotations(skeleton, np.asarray(angles_deg, float))
+    F, J = R_local.shape[:2]
+    R = np.empty_like(R_local)
+    P = np.empty((F, J, 3))
+    offsets = skeleton.offsets
+    for j, p in enumerate(skeleton.parents):
+        if p < 0:
+            R[:, j] = R_local[:, j]
+            P[:, j] = root_positions + offsets[j]
+        else:
+            R[:, j] = R[:, p] @ R_local[:, j]
+            P[:, j] = P[:, p] + R[:, p] @ offsets[j]
+    return P, R
+
+
+def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """Descendants whose positions joint j's rotation fixes, and their offsets (F, n, 3)
+    in j's frame.
+
+    A child with a zero offset sits on j itself and says nothing about j's rotation: look
+    through it to its own children, assuming its reference local rotation.
+    """
+    F = R_ref_local.shape[0]
+    ids: list[int] = []
+    vecs: list[np.ndarray] = []
+    stack = [(c, np.broadcast_to(np.eye(3), (F, 3, 3)), np.zeros((F, 3))) for c in skeleton.children[j]]
+    while stack:
+        c, R_acc, base = stack.pop()
+        vec = base + np.einsum("fij,j->fi", R_acc, skeleton.offsets[c])
+        if np.linalg.norm(skeleton.offsets[c]) > 1e-9:
+            ids.append(c)
+            vecs.append(vec)
+        else:
+            stack.extend((g, R_acc @ R_ref_local[:, c], vec) for g in skeleton.children[c])
+    return ids, (np.stack(vecs, axis=1) if vecs else np.zeros((F, 0, 3)))
+
+
+def inverse_kinematics(
+    skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Joint angles that place the skeleton's joints at ``positions`` (F, J, 3) as well as
+    its fixed bone lengths allow.
+
+    Returns (root_positions (F, 3), angles_deg (F, J, 3)). With ``reference_angles_deg``
+    (F, J, 3), the twist about single-child bones and the rotations of leaf joints come
+    from it, and every Euler triple is the representation nearest to it (continuous in
+    time); without it they are zero. Exact when ``positions`` come from FK of this
+    skeleton and the reference is the true motion.
+    """
+    positions = np.asarray(positions, float)
+    F, J = positions.shape[:2]
+    if J != skeleton.n_joints:
+        raise ValueError(f"positions have {J} joints, the skeleton {skeleton.n_joints}")
+    ref = np.zeros((F, J, 3)) if reference_angles_deg is None else np.asarray(reference_angles_deg, float)
+    R_ref_local = local_rotations(skeleton, ref)
+    R_world = np.empty((F, J, 3, 3))
+    P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
+    angles = np.empty((F, J, 3))
+    orders = skeleton.rotation_orders
+    has_rot = skeleton.has_rotation
+    root_positions = positions[:, 0] - skeleton.offsets[0]
+    for j, p in enumerate(skeleton.parents):
+        R_parent = np.broadcast_to(np.eye(3), (F, 3, 3)) if p < 0 else R_world[:, p]
+        P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
+        R_guess = R_parent @ R_ref_local[:, j]
+        ids, vecs = _effective_children(skeleton, j, R_ref_local)
+        if not has_rot[j] or not ids:
+            R_j = R_guess
+        else:
+            targets = positions[:, ids] - P[:, j][:, None]
+            # One direction, or collinear ones: the smallest correction of the reference.
+            current = np.einsum("fij,fj->fi", R_guess, vecs[:, 0])
+            R_j = vectors_to_rotation(current, targets[:, 0]) @ R_guess
+            if len(ids) > 1:
+                local_targets = np.einsum("fji,fnj->fni", R_parent, targets)
+                R_fit = R_parent @ kabsch(vecs, local_targets)
+                s = np.linalg.svd(vecs, compute_uv=False)
+                spread = s[:, 1] > 1e-6 * np.maximum(s[:, 0], 1e-12)
+                R_j = np.where(spread[:, None, None], R_fit, R_j)
+        R_world[:, j] = R_j
+        R_local = np.swapaxes(R_parent, -1, -2) @ R_j
+        angles[:, j] = nearest_euler(matrix_to_euler(R_local, orders[j]), ref[:, j]) if has_rot[j] else ref[:, j]
+    return root_positions, angles

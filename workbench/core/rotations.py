@@ -1,0 +1,179 @@
+"""Rotation helpers: Euler angles (degrees, any Tait-Bryan order) <-> matrices <-> quaternions.
+
+Conventions: an order string such as ``"ZYX"`` names the axes of a BVH joint's rotation
+channels as they appear in the file; the rotation is the product of the elementary
+rotations in that order, ``R = R_Z(a0) @ R_Y(a1) @ R_X(a2)`` (intrinsic rotations, which
+scipy writes as the upper-case sequence ``"ZYX"``). Angles are in degrees, matrices act
+on column vectors, quaternions are ``(w, x, y, z)``. Every function is vectorised over
+leading axes and never imports anything but numpy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+AXES = {"X": 0, "Y": 1, "Z": 2}
+
+
+def _check_order(order: str) -> tuple[int, int, int]:
+    if len(order) != 3 or set(order) != {"X", "Y", "Z"}:
+        raise ValueError(f"Euler order must be a permutation of 'XYZ', got {order!r}")
+    return AXES[order[0]], AXES[order[1]], AXES[order[2]]
+
+
+def axis_rotation(axis: int, angle_rad: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) about one coordinate axis (0=X, 1=Y, 2=Z)."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    R = np.zeros(np.shape(angle_rad) + (3, 3))
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    R[..., axis, axis] = 1.0
+    R[..., i, i] = c
+    R[..., j, j] = c
+    R[..., i, j] = -s
+    R[..., j, i] = s
+    return R
+
+
+def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
+    """Euler angles (..., 3) in degrees, in ``order``, to rotation matrices (..., 3, 3)."""
+    axes = _check_order(order)
+    a = np.deg2rad(np.asarray(angles_deg, dtype=float))
+    R = axis_rotation(axes[0], a[..., 0])
+    R = R @ axis_rotation(axes[1], a[..., 1])
+    return R @ axis_rotation(axes[2], a[..., 2])
+
+
+def matrix_to_euler(R: np.ndarray, order: str) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) to Euler angles (..., 3) in degrees, in ``order``.
+
+    The middle angle lies in [-90, 90]; the others in (-180, 180]. At gimbal lock the
+    third angle is set to zero.
+    """
+    i, j, k = _check_order(order)
+    R = np.asarray(R, dtype=float)
+    # Sign of the permutation (i, j, k): +1 for cyclic orders (XYZ, YZX, ZXY).
+    sign = 1.0 if (j - i) % 3 == 1 else -1.0
+    sin_b = np.clip(sign * R[..., i, k], -1.0, 1.0)
+    b = np.arcsin(sin_b)
+    a = np.arctan2(-sign * R[..., j, k], R[..., k, k])
+    c = np.arctan2(-sign * R[..., i, j], R[..., i, i])
+    locked = np.abs(sin_b) > 1.0 - 1e-9
+    if np.any(locked):
+        a_l = np.arctan2(sign * R[..., k, j], R[..., j, j])
+        a = np.where(locked, a_l, a)
+        c = np.where(locked, 0.0, c)
+    return np.rad2deg(np.stack([a, b, c], axis=-1))
+
+
+def alternative_euler(angles_deg: np.ndarray) -> np.ndarray:
+    """The other Tait-Bryan triple (a+180, 180-b, c+180) giving the same rotation."""
+    a = np.asarray(angles_deg, dtype=float)
+    return np.stack([a[..., 0] + 180.0, 180.0 - a[..., 1], a[..., 2] + 180.0], axis=-1)
+
+
+def wrap_deg(angles_deg: np.ndarray) -> np.ndarray:
+    """Wrap angles into [-180, 180)."""
+    return (np.asarray(angles_deg) + 180.0) % 360.0 - 180.0
+
+
+def nearest_euler(angles_deg: np.ndarray, reference_deg: np.ndarray) -> np.ndarray:
+    """Of the two Euler triples for each rotation, and all their 360-degree shifts, pick
+    the one closest to ``reference_deg`` (same shape): keeps channels continuous in time."""
+    best, best_cost = None, None
+    for cand in (np.asarray(angles_deg, float), alternative_euler(angles_deg)):
+        cand = reference_deg + wrap_deg(cand - reference_deg)
+        cost = np.sum((cand - reference_deg) ** 2, axis=-1)
+        if best is None:
+            best, best_cost = cand, cost
+        else:
+            take = cost < best_cost
+            best = np.where(take[..., None], cand, best)
+            best_cost = np.where(take, cost, best_cost)
+    return best
+
+
+def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) to unit quaternions (..., 4) as (w, x, y, z), w >= 0."""
+    R = np.asarray(R, dtype=float)
+    m = R
+    t = np.stack(
+        [
+            1 + m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2],
+            1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2],
+            1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2],
+            1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2],
+        ],
+        axis=-1,
+    )
+    best = np.argmax(t, axis=-1)
+    q = np.empty(R.shape[:-2] + (4,))
+    cands = [
+        np.stack([t[..., 0], m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1),
+        np.stack([m[..., 2, 1] - m[..., 1, 2], t[..., 1], m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0]], -1),
+        np.stack([m[..., 0, 2] - m[..., 2, 0], m[..., 0, 1] + m[..., 1, 0], t[..., 2], m[..., 1, 2] + m[..., 2, 1]], -1),
+        np.stack([m[..., 1, 0] - m[..., 0, 1], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1], t[..., 3]], -1),
+    ]
+    for n, cand in enumerate(cands):
+        sel = best == n
+        q[sel] = cand[sel] / (2.0 * np.sqrt(t[..., n][sel]))[..., None]
+    q *= np.where(q[..., :1] < 0, -1.0, 1.0)
+    return q
+
+
+def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
+    """Quaternions (..., 4) as (w, x, y, z), normalised here, to matrices (..., 3, 3)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
+
+
+def rotation_angle_deg(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
+    """Geodesic angle (...) in degrees between rotation matrices (..., 3, 3)."""
+    trace = np.einsum("...ij,...ij->...", R_a, R_b)
+    return np.rad2deg(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def vectors_to_rotation(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Smallest rotations (..., 3, 3) turning direction ``source`` (..., 3) onto ``target``."""
+    a = source / np.maximum(np.linalg.norm(source, axis=-1, keepdims=True), 1e-12)
+    b = target / np.maximum(np.linalg.norm(target, axis=-1, keepdims=True), 1e-12)
+    v = np.cross(a, b)
+    c = np.sum(a * b, axis=-1)
+    K = np.zeros(v.shape[:-1] + (3, 3))
+    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
+    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
+    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
+    scale = 1.0 / np.maximum(1.0 + c, 1e-12)
+    R = np.eye(3) + K + (K @ K) * scale[..., None, None]
+    # Opposite vectors: rotate by 180 degrees about any axis perpendicular to a.
+    opposite = c < -1.0 + 1e-9
+    if np.any(opposite):
+        ao = a[opposite]
+        helper = np.where(np.abs(ao[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+        axis = np.cross(ao, helper)
+        axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+        R[opposite] = 2.0 * axis[:, :, None] * axis[:, None, :] - np.eye(3)
+    return R
+
+
+def kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Rotations (..., 3, 3) best mapping vectors ``source`` (..., N, 3) onto ``target``
+    (..., N, 3) in the weighted least-squares sense (no translation, proper rotations)."""
+    if weights is not None:
+        source = source * weights[..., None]
+    H = np.swapaxes(source, -1, -2) @ target  # (..., 3, 3)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)))
+    D = np.zeros(H.shape)
+    D[..., 0, 0] = 1.0
+    D[..., 1, 1] = 1.0
+    D[..., 2, 2] = np.where(d == 0, 1.0, d)
+    return np.swapaxes(Vt, -1, -2) @ D @ np.swapaxes(U, -1, -2)

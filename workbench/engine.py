@@ -1,0 +1,253 @@
+"""The engine protocol: what every cleaning method implements, and shared machinery.
+
+An engine sees an :class:`~workbench.core.Observation` (never the truth) and returns a
+:class:`CleanResult`: a complete Motion (same skeleton, fps and frame count, finite
+everywhere) plus named diagnostic arrays it can explain itself with, e.g.
+``filter_sigma_frames`` (F, C) for filter-predicting engines.
+
+Parameters are a frozen dataclass ``Params`` with units in the field names; fitted state
+ends with ``_``; ``clean`` on an unfitted trainable engine raises :class:`NotFittedError`.
+Engines that depend on a skeleton record it at fit time and refuse another one with
+:class:`EngineError`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import ClassVar, Mapping, Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+from .core.motion import Motion, Observation
+from .core.skeleton import Skeleton
+
+TASKS = frozenset({"denoise", "fill"})
+SPACES = frozenset({"angles", "positions"})
+
+
+class EngineError(ValueError):
+    """A user-facing problem with an engine: bad spec, wrong skeleton, unusable input."""
+
+
+class NotFittedError(EngineError):
+    """``clean`` was called on a trainable engine that has neither been fitted nor loaded."""
+
+
+@dataclass(frozen=True)
+class EngineInfo:
+    """What an engine is. tasks: subset of {"denoise", "fill"}; space: "angles" or
+    "positions"; keeps_observed: observed samples come back unchanged."""
+
+    name: str
+    summary: str
+    tasks: frozenset[str]
+    space: str = "angles"
+    trainable: bool = False
+    keeps_observed: bool = False
+    citation: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.tasks <= TASKS or self.space not in SPACES:
+            raise ValueError(f"engine {self.name!r}: bad tasks {set(self.tasks)} or space {self.space!r}")
+
+
+@dataclass(frozen=True)
+class CleanResult:
+    """The cleaned motion and named diagnostics (arrays with the frame axis first)."""
+
+    motion: Motion
+    diagnostics: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@runtime_checkable
+class EngineProtocol(Protocol):
+    info: EngineInfo
+
+    def fit(self, motions: Sequence[Motion], /) -> "EngineProtocol": ...
+
+    def clean(self, observation: Observation, /) -> CleanResult: ...
+
+
+@dataclass(frozen=True)
+class NoParams:
+    """Engines without parameters."""
+
+
+def _coerce(value: str, kind: typing.Any, name: str) -> typing.Any:
+    if kind is bool:
+        low = value.lower()
+        if low in ("1", "true", "yes", "on"):
+            return True
+        if low in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(f"{name} must be true or false, got {value!r}")
+    if kind in (int, float, str):
+        return kind(value)
+    raise ValueError(f"{name}: cannot set a parameter of type {kind} from text")
+
+
+class Engine:
+    """Base class with the shared machinery: parameters from spec strings, skeleton
+    checks, saving and loading fitted state with a checksummed manifest."""
+
+    info: ClassVar[EngineInfo]
+    Params: ClassVar[type] = NoParams
+    #: fitted skeleton layout signature (trainable engines set it in fit/load)
+    skeleton_signature_: str | None = None
+
+    def __init__(self, params: typing.Any = None) -> None:
+        self.params = self.Params() if params is None else params
+
+    # -- parameters -----------------------------------------------------------------
+    @classmethod
+    def from_options(cls, options: Mapping[str, str]) -> "Engine":
+        """Build from ``{"sigma_ms": "58"}``-style text options, with clear errors."""
+        fields = {f.name: f for f in dataclasses.fields(cls.Params)}
+        hints = typing.get_type_hints(cls.Params)
+        values = {}
+        for key, text in options.items():
+            if key not in fields:
+                valid = ", ".join(fields) or "none"
+                raise EngineError(f"engine {cls.info.name!r} has no parameter {key!r} (parameters: {valid})")
+            try:
+                values[key] = _coerce(text, hints[key], key)
+            except ValueError as err:
+                raise EngineError(f"engine {cls.info.name!r}: {err}") from None
+        try:
+            return cls(cls.Params(**values))
+        except (TypeError, ValueError) as err:
+            raise EngineError(f"engine {cls.info.name!r}: {err}") from None
+
+    @property
+    def spec(self) -> str:
+        """The spec string that recreates this engine, e.g. ``gaussian:sigma_ms=58``."""
+        default = self.Params()
+        changed = [
+            f"{f.name}={getattr(self.params, f.name)}"
+            for f in dataclasses.fields(self.params)
+            if getattr(self.params, f.name) != getattr(default, f.name)
+        ]
+        return self.info.name + (":" + ",".join(changed) if changed else "")
+
+    # -- the protocol ---------------------------------------------------------------
+    def fit(self, motions: Sequence[Motion], /) -> "Engine":
+        return self
+
+    def clean(self, observation: Observation, /) -> CleanResult:
+        raise NotImplementedError
+
+    # -- skeleton checks ------------------------------------------------------------
+    def check_skeleton(self, skeleton: Skeleton) -> None:
+        """Raise EngineError if this engine was fitted for another skeleton layout."""
+        if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
+            raise EngineError(
+                f"engine {self.info.name!r} was trained for another skeleton "
+                f"({self.skeleton_description_}); this take has {skeleton.n_joints} joints "
+                f"rooted at {skeleton.names[0]!r}. Retrain it for this skeleton with "
+                f"`workbench train {self.info.name} --data DIR`."
+            )
+
+    @property
+    def skeleton_description_(self) -> str:
+        sig = self.skeleton_signature_ or ""
+        joints = sig.split(";")
+        return f"{len(joints)} joints rooted at {joints[0].split('<')[0]!r}" if sig else "unknown"
+
+    def require_fitted(self) -> None:
+        if self.info.trainable and self.skeleton_signature_ is None:
+            raise NotFittedError(
+                f"engine {self.info.name!r} is not trained: run `workbench train {self.info.name}` "
+                f"or give it weights"
+            )
+
+    # -- fitted state ---------------------------------------------------------------
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        """Fitted state as named arrays (trainable engines override)."""
+        raise NotImplementedError(f"engine {self.info.name!r} has no fitted state")
+
+    def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
+        raise NotImplementedError(f"engine {self.info.name!r} has no fitted state")
+
+    def save(self, folder: str | Path, extra_manifest: Mapping | None = None) -> Path:
+        """Save fitted state and its manifest into ``folder``; returns the manifest path."""
+        from .weights import save_weights
+
+        self.require_fitted()
+        manifest = {
+            "engine": self.info.name,
+            "spec": self.spec,
+            "params": dataclasses.asdict(self.params),
+            "skeleton_signature": self.skeleton_signature_,
+            **(extra_manifest or {}),
+        }
+        return save_weights(folder, self.state_arrays(), manifest)
+
+    def load(self, folder: str | Path) -> "Engine":
+        """Load fitted state saved by :meth:`save` (checksum verified, no pickle)."""
+        from .weights import load_weights
+
+        arrays, manifest = load_weights(folder)
+        if manifest.get("engine") != self.info.name:
+            raise EngineError(f"{folder}: these weights are for engine {manifest.get('engine')!r}, not {self.info.name!r}")
+        self.load_state_arrays(arrays, manifest)
+        self.skeleton_signature_ = manifest["skeleton_signature"]
+        return self
+
+    def default_weights_dir(self) -> Path:
+        """``engines/<name>/weights`` beside the engine's module."""
+        import sys
+
+        module = sys.modules[type(self).__module__]
+        return Path(module.__file__).resolve().parent / "weights"
+
+    def load_pretrained(self) -> "Engine":
+        """Load the committed weights when this engine is trainable and has some."""
+        if self.info.trainable and (self.default_weights_dir() / "manifest.json").exists():
+            self.load(self.default_weights_dir())
+        return self
+
+
+class Pipeline(Engine):
+    """``a>b``: stage a fills gaps, then b cleans the filled motion as fully observed.
+
+    Diagnostics of the last stage keep their names; earlier ones are prefixed with their
+    stage's name and a dot.
+    """
+
+    def __init__(self, stages: Sequence[Engine]) -> None:
+        if len(stages) < 2:
+            raise EngineError("a pipeline needs at least two engines, as in 'lerp>gaussian'")
+        self.stages = list(stages)
+        super().__init__(NoParams())
+        tasks = frozenset().union(*(s.info.tasks for s in stages))
+        self.info = EngineInfo(
+            name=">".join(s.spec for s in stages),
+            summary=" then ".join(s.info.name for s in stages),
+            tasks=tasks,
+            space=stages[-1].info.space,
+            trainable=any(s.info.trainable for s in stages),
+        )
+
+    @property
+    def spec(self) -> str:
+        return ">".join(s.spec for s in self.stages)
+
+    def fit(self, motions: Sequence[Motion], /) -> "Pipeline":
+        for s in self.stages:
+            s.fit(motions)
+        return self
+
+    def clean(self, observation: Observation, /) -> CleanResult:
+        diagnostics: dict[str, np.ndarray] = {}
+        result = None
+        for i, stage in enumerate(self.stages):
+            result = stage.clean(observation)
+            last = i == len(self.stages) - 1
+            for key, value in result.diagnostics.items():
+                diagnostics[key if last else f"{stage.info.name}.{key}"] = value
+            observation = Observation(result.motion)
+        assert result is not None
+        return CleanResult(result.motion, diagnostics)

@@ -1,0 +1,304 @@
+"""BVH read and write.
+
+Reads any BVH whose joints carry three rotation channels (any Euler order, per joint)
+and whose root may carry three position channels: CRLF, LF and mixed line endings,
+tabs or spaces. Angles stay in degrees, lengths in the file's unit. Every problem is a
+:class:`MotionFileError` naming the file and line. Writing is atomic and keeps the
+channel layout and Euler orders of the skeleton.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ..core.motion import Motion
+from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
+from .atomic import atomic_path
+from .errors import MotionFileError
+
+
+class _Tokens:
+    """Whitespace tokens of the header with their line numbers."""
+
+    def __init__(self, lines: list[str], path: str) -> None:
+        self.items: list[tuple[str, int]] = []
+        self.path = path
+        self.motion_line = None
+        for n, line in enumerate(lines, start=1):
+            words = line.split()
+            if words and words[0].upper() == "MOTION":
+                self.motion_line = n
+                break
+            self.items.extend((w, n) for w in words)
+        self.pos = 0
+
+    def next(self, what: str) -> tuple[str, int]:
+        if self.pos >= len(self.items):
+            line = self.items[-1][1] if self.items else 1
+            raise MotionFileError(self.path, f"file ends inside the HIERARCHY section, expected {what}", line)
+        tok = self.items[self.pos]
+        self.pos += 1
+        return tok
+
+    def expect(self, word: str) -> int:
+        tok, line = self.next(repr(word))
+        if tok != word:
+            raise MotionFileError(self.path, f"expected {word!r}, found {tok!r}", line)
+        return line
+
+    def number(self, what: str) -> float:
+        tok, line = self.next(what)
+        try:
+            return float(tok)
+        except ValueError:
+            raise MotionFileError(self.path, f"expected a number for {what}, found {tok!r}", line) from None
+
+
+def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
+    names: list[str] = []
+    parents: list[int] = []
+    offsets: list[list[float]] = []
+    channels: list[tuple[str, ...]] = []
+    end_sites: list[tuple[int, tuple[float, float, float]]] = []
+    path = tokens.path
+
+    tok, line = tokens.next("'HIERARCHY'")
+    if tok.upper() != "HIERARCHY":
+        raise MotionFileError(path, f"not a BVH file: expected 'HIERARCHY', found {tok!r}", line)
+    tok, line = tokens.next("'ROOT'")
+    if tok != "ROOT":
+        raise MotionFileError(path, f"expected 'ROOT', found {tok!r}", line)
+
+    def offset() -> list[float]:
+        tokens.expect("OFFSET")
+        return [tokens.number("OFFSET x"), tokens.number("OFFSET y"), tokens.number("OFFSET z")]
+
+    def joint(parent: int) -> None:
+        name, line = tokens.next("a joint name")
+        if name in names:
+            raise MotionFileError(path, f"joint name {name!r} appears twice", line)
+        tokens.expect("{")
+        index = len(names)
+        names.append(name)
+        parents.append(parent)
+        offsets.append(offset())
+        tok, line = tokens.next("'CHANNELS'")
+        if tok != "CHANNELS":
+            raise MotionFileError(path, f"expected 'CHANNELS' for joint {name!r}, found {tok!r}", line)
+        count = tokens.number("the channel count")
+        if count != int(count) or not 0 <= count <= 6:
+            raise MotionFileError(path, f"joint {name!r}: channel count must be 0 to 6, got {count}", line)
+        chans = []
+        for _ in range(int(count)):
+            ch, cline = tokens.next("a channel name")
+            if ch not in ROTATION_CHANNELS + POSITION_CHANNELS:
+                raise MotionFileError(path, f"joint {name!r}: unknown channel name {ch!r}", cline)
+            chans.append(ch)
+        channels.append(tuple(chans))
+        try:
+            Skeleton._validate_channels(name, index, tuple(chans))
+        except ValueError as err:
+            raise MotionFileError(path, str(err), line) from None
+        while True:
+            tok, line = tokens.next("'JOINT', 'End Site' or '}'")
+            if tok == "}":
+                return
+            if tok == "JOINT":
+                joint(index)
+            elif tok == "End":
+                site, sline = tokens.next("'Site'")
+                if site.lower() != "site":
+                    raise MotionFileError(path, f"expected 'End Site', found 'End {site}'", sline)
+                tokens.expect("{")
+                end_sites.append((index, tuple(offset())))
+                tokens.expect("}")
+            else:
+                raise MotionFileError(path, f"expected 'JOINT', 'End Site' or '}}', found {tok!r}", line)
+
+    joint(-1)
+    if tokens.pos < len(tokens.items):
+        tok, line = tokens.items[tokens.pos]
+        raise MotionFileError(path, f"unexpected {tok!r} after the root joint's closing brace", line)
+    return Skeleton(tuple(names), tuple(parents), np.array(offsets), tuple(channels), tuple(end_sites))
+
+
+def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -> tuple[float, np.ndarray]:
+    """Parse from the MOTION line (1-based ``start``): returns (frame time s, values (F, D))."""
+
+    def header(n: int, label: str) -> str:
+        if n > len(lines):
+            raise MotionFileError(path, f"file ends before the '{label}' line", n - 1)
+        text = lines[n - 1].strip()
+        if not text.lower().startswith(label.lower()):
+            raise MotionFileError(path, f"expected '{label} ...', found {text[:40]!r}", n)
+        return text[len(label):].strip()
+
+    rest = lines[start - 1].split()[1:]
+    if rest:
+        raise MotionFileError(path, f"unexpected {rest[0]!r} after MOTION", start)
+    frames_text = header(start + 1, "Frames:")
+    try:
+        n_frames = int(frames_text)
+    except ValueError:
+        raise MotionFileError(path, f"'Frames:' must be a whole number, found {frames_text!r}", start + 1) from None
+    if n_frames <= 0:
+        raise MotionFileError(path, f"the file has {n_frames} frames: nothing to read", start + 1)
+    ft_text = header(start + 2, "Frame Time:")
+    try:
+        frame_time = float(ft_text)
+    except ValueError:
+        raise MotionFileError(path, f"'Frame Time:' must be a number, found {ft_text!r}", start + 2) from None
+    if not frame_time > 0 or not np.isfinite(frame_time):
+        raise MotionFileError(path, f"'Frame Time:' must be positive, found {ft_text!r}", start + 2)
+
+    first = start + 3  # 1-based line number of frame 0
+    body = lines[first - 1:]
+    while body and not body[-1].strip():
+        body.pop()
+    D = sum(len(ch) for ch in skeleton.channels)
+    if len(body) < n_frames:
+        raise MotionFileError(
+            path,
+            f"motion section is truncated: 'Frames:' says {n_frames} but only {len(body)} frame lines follow",
+            first + len(body) - 1 if body else start + 2,
+        )
+    if len(body) > n_frames:
+        raise MotionFileError(
+            path, f"'Frames:' says {n_frames} but {len(body)} frame lines follow", first + n_frames
+        )
+    rows = [line.split() for line in body]
+    for n, row in enumerate(rows):
+        if len(row) != D:
+            raise MotionFileError(
+                path, f"frame {n} has {len(row)} values, the hierarchy has {D} channels", first + n
+            )
+    try:
+        values = np.array(rows, dtype=float)
+    except ValueError:
+        for n, row in enumerate(rows):
+            for word in row:
+                try:
+                    float(word)
+                except ValueError:
+                    raise MotionFileError(path, f"frame {n}: {word!r} is not a number", first + n) from None
+        raise
+    if np.isinf(values).any():
+        n = int(np.argwhere(np.isinf(values))[0, 0])
+        raise MotionFileError(path, f"frame {n}: infinite value", first + n)
+    return frame_time, values
+
+
+def fps_from_frame_time(frame_time: float) -> float:
+    """Frames per second; snapped to a whole number when the file rounded its frame time
+    (``.0083333`` is 120 fps)."""
+    fps = 1.0 / frame_time
+    return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+
+
+def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
+    """Read a BVH file into a Motion. ``unit_cm`` overrides the guessed unit size.
+
+    Raises :class:`MotionFileError` for anything that is not a well-formed BVH file.
+    NaN values are kept (they mark missing data).
+    """
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8", errors="replace")
+    except OSError as err:
+        raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
+    lines = text.splitlines()
+    tokens = _Tokens(lines, str(path))
+    skeleton = _parse_hierarchy(tokens)
+    if tokens.motion_line is None:
+        raise MotionFileError(path, "no MOTION section: the file ends after the hierarchy", len(lines))
+    frame_time, values = _parse_motion(lines, tokens.motion_line, skeleton, str(path))
+    if unit_cm is not None:
+        skeleton = Skeleton(skeleton.names, skeleton.parents, skeleton.offsets, skeleton.channels,
+                            skeleton.end_sites, unit_cm)
+    root, angles = _split_values(skeleton, values)
+    return Motion(skeleton, fps_from_frame_time(frame_time), root, angles, name=path.stem)
+
+
+def _column_layout(skeleton: Skeleton) -> tuple[list[int], list[tuple[int, int]]]:
+    """For each file column: where it goes. Returns (root position columns in x, y, z
+    order, [(joint, slot)] for each rotation column), both as file column indices."""
+    root_cols = [0, 0, 0]
+    rot_cols: list[tuple[int, int, int]] = []
+    col = 0
+    for j, chans in enumerate(skeleton.channels):
+        slot = 0
+        for ch in chans:
+            if ch in POSITION_CHANNELS:
+                root_cols[POSITION_CHANNELS.index(ch)] = col
+            else:
+                rot_cols.append((col, j, slot))
+                slot += 1
+            col += 1
+    return root_cols, rot_cols
+
+
+def _split_values(skeleton: Skeleton, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    F = values.shape[0]
+    root_cols, rot_cols = _column_layout(skeleton)
+    has_pos = any(c in POSITION_CHANNELS for c in skeleton.channels[0])
+    root = values[:, root_cols] if has_pos else np.zeros((F, 3))
+    angles = np.zeros((F, skeleton.n_joints, 3))
+    for col, j, slot in rot_cols:
+        angles[:, j, slot] = values[:, col]
+    return root, angles
+
+
+def motion_values(motion: Motion) -> np.ndarray:
+    """The (F, D) frame values in the file's column layout."""
+    sk = motion.skeleton
+    D = sum(len(ch) for ch in sk.channels)
+    values = np.zeros((motion.n_frames, D))
+    root_cols, rot_cols = _column_layout(sk)
+    if any(c in POSITION_CHANNELS for c in sk.channels[0]):
+        values[:, root_cols] = motion.root_positions
+    for col, j, slot in rot_cols:
+        values[:, col] = motion.angles_deg[:, j, slot]
+    return values
+
+
+def format_bvh(motion: Motion, precision: int = 6) -> str:
+    """The BVH text of a motion (LF line endings, tab indentation)."""
+    sk = motion.skeleton
+    values = motion_values(motion)
+    if not np.isfinite(values).all():
+        raise ValueError("the motion has missing (NaN) values: fill its gaps before writing it as BVH")
+    out = io.StringIO()
+    out.write("HIERARCHY\n")
+    ends: dict[int, list] = {}
+    for p, off in sk.end_sites:
+        ends.setdefault(p, []).append(off)
+    children = sk.children
+
+    def fmt(v) -> str:
+        return " ".join(f"{x:.{precision}f}" for x in v)
+
+    def write_joint(j: int, depth: int) -> None:
+        ind = "\t" * depth
+        out.write(f"{ind}{'ROOT' if j == 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
+        out.write(f"{ind}\tOFFSET {fmt(sk.offsets[j])}\n")
+        out.write(f"{ind}\tCHANNELS {len(sk.channels[j])}{''.join(' ' + c for c in sk.channels[j])}\n")
+        for c in children[j]:
+            write_joint(c, depth + 1)
+        for off in ends.get(j, []):
+            out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
+        out.write(f"{ind}}}\n")
+
+    write_joint(0, 0)
+    out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {1.0 / motion.fps:.7f}\n")
+    np.savetxt(out, values, fmt=f"%.{precision}f", delimiter=" ")
+    return out.getvalue()
+
+
+def write_bvh(path: str | Path, motion: Motion, precision: int = 6) -> None:
+    """Write ``motion`` as BVH, atomically (no partial file on error)."""
+    text = format_bvh(motion, precision)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8", newline="\n")

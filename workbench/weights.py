@@ -1,0 +1,79 @@
+"""Fitted state on disk: ``weights.npz`` (plain arrays, never pickled) plus
+``manifest.json`` holding its sha256 and whatever the engine needs to rebuild itself
+(parameters, skeleton, training data, metrics, code version).
+
+Torch engines store their state_dict as arrays too, so loading never unpickles a file
+a user hands us; a file whose checksum does not match is refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .engine import EngineError
+from .io.atomic import atomic_path, atomic_write_text
+
+WEIGHTS_FILE = "weights.npz"
+MANIFEST_FILE = "manifest.json"
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> Path:
+    """Write arrays and manifest atomically into ``folder``; returns the manifest path."""
+    from . import __version__
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    with atomic_path(folder / WEIGHTS_FILE) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **{k: np.asarray(v) for k, v in arrays.items()})
+        digest = sha256_file(tmp)
+    full = {
+        **manifest,
+        "file": WEIGHTS_FILE,
+        "sha256": digest,
+        "code_version": __version__,
+        "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+    atomic_write_text(folder / MANIFEST_FILE, json.dumps(full, indent=2, sort_keys=True) + "\n")
+    return folder / MANIFEST_FILE
+
+
+def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
+    """Read and verify weights saved by :func:`save_weights`. Raises EngineError with a
+    clear message for a missing, corrupt or tampered file."""
+    folder = Path(folder)
+    manifest_path = folder / MANIFEST_FILE
+    try:
+        manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise EngineError(f"{manifest_path}: no weights manifest here; train the engine first") from None
+    except (OSError, ValueError) as err:
+        raise EngineError(f"{manifest_path}: unreadable weights manifest ({err})") from None
+    path = folder / manifest.get("file", WEIGHTS_FILE)
+    if not path.exists():
+        raise EngineError(f"{path}: the weights file named by the manifest is missing")
+    if sha256_file(path) != manifest.get("sha256"):
+        raise EngineError(
+            f"{path}: checksum does not match its manifest; the file is corrupt or was changed. "
+            "Retrain the engine or restore the file."
+        )
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError) as err:
+        raise EngineError(f"{path}: unreadable weights ({err})") from None
+    return arrays, manifest
