@@ -1,0 +1,68 @@
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from workbench.core import Motion, forward_kinematics, inverse_kinematics
+from workbench.metrics import bone_lengths
+
+
+def test_fk_matches_a_per_joint_reference(walk):
+    """FK against a plain per-frame loop written from the BVH definition."""
+    from scipy.spatial.transform import Rotation
+
+    sk = walk.skeleton
+    f = 100
+    P = np.zeros((sk.n_joints, 3))
+    R = [None] * sk.n_joints
+    for j, p in enumerate(sk.parents):
+        local = Rotation.from_euler(sk.rotation_order(j), walk.angles_deg[f, j], degrees=True).as_matrix()
+        if p < 0:
+            R[j], P[j] = local, walk.root_positions[f] + sk.offsets[j]
+        else:
+            R[j], P[j] = R[p] @ local, P[p] + R[p] @ sk.offsets[j]
+    assert np.allclose(walk.positions[f], P, atol=1e-9)
+
+
+def test_fk_keeps_bone_lengths(walk, kick):
+    for m in (walk, kick):
+        L = bone_lengths(m.positions, m.skeleton.parents)
+        rest = np.linalg.norm(m.skeleton.offsets[1:], axis=1)
+        assert np.allclose(L, rest[None], atol=1e-9)
+
+
+def test_ik_recovers_angles_exactly_with_a_reference(walk, kick):
+    for m in (walk, kick):
+        root, ang = inverse_kinematics(m.skeleton, m.positions, m.angles_deg)
+        assert np.allclose(root, m.root_positions, atol=1e-9)
+        assert np.allclose(ang, m.angles_deg, atol=1e-6)
+
+
+def test_ik_without_reference_reaches_the_positions(walk, kick):
+    for m in (walk, kick):
+        root, ang = inverse_kinematics(m.skeleton, m.positions)
+        P, _ = forward_kinematics(m.skeleton, root, ang)
+        assert np.allclose(P, m.positions, atol=1e-6)
+
+
+@given(seed=st.integers(0, 10_000), sigma=st.floats(0.01, 2.0))
+@settings(max_examples=15, deadline=None)
+def test_ik_of_noisy_positions_keeps_bone_lengths_and_gets_close(walk, seed, sigma):
+    """Property: for any noise, IK output has the skeleton's bone lengths exactly, and it
+    is no farther from the noisy targets than the clean pose is (it is a fit)."""
+    m = walk.slice(0, 40)
+    rng = np.random.default_rng(seed)
+    noisy = m.positions + rng.normal(scale=sigma, size=m.positions.shape)
+    root, ang = inverse_kinematics(m.skeleton, noisy, m.angles_deg)
+    fit = Motion(m.skeleton, m.fps, root, ang)
+    L = bone_lengths(fit.positions, m.skeleton.parents)
+    assert np.allclose(L, np.linalg.norm(m.skeleton.offsets[1:], axis=1)[None], atol=1e-9)
+    err_fit = np.linalg.norm(fit.positions - noisy, axis=2).mean()
+    err_clean = np.linalg.norm(m.positions - noisy, axis=2).mean()
+    assert err_fit <= err_clean * 1.05
+
+
+def test_motion_is_read_only_and_channels_round_trip(walk):
+    assert not walk.angles_deg.flags.writeable and not walk.positions.flags.writeable
+    again = walk.with_channels(walk.channels)
+    assert again.allclose(walk, atol=0)
+    assert walk.positions.shape == (walk.n_frames, 31, 3)

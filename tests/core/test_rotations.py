@@ -1,0 +1,83 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.spatial.transform import Rotation
+
+from workbench.core import rotations as rot
+
+ORDERS = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"]
+angles = arrays(np.float64, (5, 3), elements=st.floats(-179.0, 179.0))
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@given(a=angles)
+@settings(max_examples=30, deadline=None)
+def test_euler_to_matrix_matches_scipy(order, a):
+    ours = rot.euler_to_matrix(a, order)
+    theirs = Rotation.from_euler(order, a, degrees=True).as_matrix()  # upper case: intrinsic
+    assert np.allclose(ours, theirs, atol=1e-12)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@given(a=angles)
+@settings(max_examples=30, deadline=None)
+def test_matrix_to_euler_inverts(order, a):
+    R = rot.euler_to_matrix(a, order)
+    back = rot.euler_to_matrix(rot.matrix_to_euler(R, order), order)
+    assert np.allclose(back, R, atol=1e-9)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_matrix_to_euler_matches_scipy_away_from_lock(order):
+    rng = np.random.default_rng(0)
+    a = rng.uniform(-170, 170, (200, 3))
+    a[:, 1] = rng.uniform(-85, 85, 200)
+    R = rot.euler_to_matrix(a, order)
+    theirs = Rotation.from_matrix(R).as_euler(order, degrees=True)
+    assert np.allclose(rot.matrix_to_euler(R, order), theirs, atol=1e-8)
+    assert np.allclose(rot.matrix_to_euler(R, order), a, atol=1e-8)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+def test_gimbal_lock_still_gives_the_rotation(order):
+    a = np.array([[30.0, 90.0, 40.0], [-20.0, -90.0, 10.0]])
+    R = rot.euler_to_matrix(a, order)
+    assert np.allclose(rot.euler_to_matrix(rot.matrix_to_euler(R, order), order), R, atol=1e-9)
+
+
+def test_quaternions_match_scipy():
+    R = Rotation.random(500, random_state=1)
+    ours = rot.matrix_to_quaternion(R.as_matrix())
+    xyzw = R.as_quat()
+    theirs = np.concatenate([xyzw[:, 3:], xyzw[:, :3]], axis=1)
+    theirs *= np.where(theirs[:, :1] < 0, -1, 1)
+    assert np.allclose(ours, theirs, atol=1e-10)
+    assert np.allclose(rot.quaternion_to_matrix(ours), R.as_matrix(), atol=1e-10)
+
+
+def test_alternative_and_nearest_euler():
+    a = np.array([[10.0, 20.0, 30.0]])
+    alt = rot.alternative_euler(a)
+    assert np.allclose(rot.euler_to_matrix(alt, "ZYX"), rot.euler_to_matrix(a, "ZYX"))
+    ref = np.array([[370.0, 20.0, -330.0]])
+    assert np.allclose(rot.nearest_euler(a, ref), [[370.0, 20.0, -330.0]])
+
+
+def test_vectors_to_rotation_and_kabsch():
+    rng = np.random.default_rng(2)
+    a, b = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    R = rot.vectors_to_rotation(a, b)
+    mapped = np.einsum("nij,nj->ni", R, a / np.linalg.norm(a, axis=1, keepdims=True))
+    assert np.allclose(mapped, b / np.linalg.norm(b, axis=1, keepdims=True), atol=1e-9)
+    assert np.allclose(rot.vectors_to_rotation(a, -a) @ a[..., None], -a[..., None], atol=1e-9)
+    R_true = Rotation.random(10, random_state=3).as_matrix()
+    src = rng.normal(size=(10, 4, 3))
+    tgt = np.einsum("nij,nkj->nki", R_true, src)
+    assert np.allclose(rot.kabsch(src, tgt), R_true, atol=1e-9)
+
+
+def test_bad_order_is_a_clear_error():
+    with pytest.raises(ValueError, match="permutation"):
+        rot.euler_to_matrix(np.zeros(3), "XXY")

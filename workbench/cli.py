@@ -1,0 +1,300 @@
+"""``workbench``: the command line.
+
+Subcommands: data, engines, corrupt, clean, bench, train (and the app's gui, report,
+screenshots). Every user error (bad file, bad spec, missing data or weights) prints one
+clear line on stderr and exits with status 2; nothing is half-written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+
+
+class UserError(Exception):
+    """A problem the user can fix; printed without a traceback."""
+
+
+def _user_errors() -> tuple[type, ...]:
+    from .corruption import CorruptionSpecError
+    from .data import DataNotFoundError
+    from .engine import EngineError
+    from .io import MotionFileError
+
+    return (UserError, MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, KeyError)
+
+
+def split_engine_specs(values: list[str]) -> list[str]:
+    """``["ebf:bias=true,free=1,gaussian"]`` -> ``["ebf:bias=true,free=1", "gaussian"]``:
+    a comma-separated piece that is a bare ``key=value`` continues the previous spec."""
+    specs: list[str] = []
+    for value in values:
+        for piece in filter(None, (p.strip() for p in value.split(","))):
+            if specs and "=" in piece and ":" not in piece.split("=")[0] and ">" not in piece:
+                specs[-1] += "," + piece
+            else:
+                specs.append(piece)
+    return specs
+
+
+# -- data -------------------------------------------------------------------------------
+def cmd_data(args) -> int:
+    from .data import catalogue, find_data_root, select
+
+    root = find_data_root(args.data)
+    clips = select(catalogue(root), args.split)
+    print(f"data root: {root}")
+    print(f"{'clip':28s} {'category':9s} {'subject':7s} {'split':6s} {'frames':>6s}")
+    for c in clips:
+        print(f"{c.id:28s} {c.category:9s} {c.subject:7s} {c.split or '-':6s} {c.frames or '?':>6}")
+    counts = {s: sum(c.split == s for c in clips) for s in ("train", "test", "")}
+    print(f"{len(clips)} clips: {counts['train']} train, {counts['test']} test, {counts['']} in no split")
+    print("Frame 0 of the cgspeed conversions is a T-pose reference frame; loading drops it.")
+    return 0
+
+
+def cmd_engines(args) -> int:
+    from . import registry
+
+    for name in registry.available():
+        try:
+            cls = registry.get(name)
+        except Exception as err:  # show broken plugins instead of hiding them
+            print(f"{name:16s} (failed to load: {err})")
+            continue
+        info = cls.info
+        import dataclasses
+
+        params = ", ".join(f"{f.name}={f.default}" for f in dataclasses.fields(cls.Params))
+        flags = "/".join(sorted(info.tasks)) + f", {info.space}" + (", trainable" if info.trainable else "")
+        print(f"{name:16s} {info.summary} [{flags}]" + (f"\n{'':16s} parameters: {params}" if params else ""))
+    return 0
+
+
+# -- corrupt / clean --------------------------------------------------------------------
+def _read(path: str):
+    from .io import read_motion
+
+    return read_motion(path)
+
+
+def cmd_corrupt(args) -> int:
+    from .core.channels import interpolate_gaps, unwrap_deg
+    from .core.motion import channel_mask
+    from .corruption import parse_corruption
+    from .data import has_reference_frame
+    from .io import write_bvh
+    from .io.mask import write_mask
+
+    motion = _read(args.input)
+    if has_reference_frame(motion) and not args.keep_reference:
+        motion = motion.slice(1)
+        print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
+    obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
+    mask = channel_mask(obs.observed)
+    X = obs.motion.channels
+    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:])
+    out = Path(args.output)
+    mask_path = out.with_name(out.name + ".mask.json")
+    write_bvh(out, obs.motion.with_channels(interpolate_gaps(X, mask)))
+    write_mask(mask_path, obs.observed, motion.skeleton)
+    missing = 1.0 - obs.observed.mean()
+    print(f"wrote {out} ({motion.n_frames} frames, corruption {parse_corruption(args.corrupt)}, seed {args.seed})")
+    print(f"wrote {mask_path} ({missing:.1%} of joint samples missing; gaps are bridged linearly in the BVH)")
+    return 0
+
+
+def cmd_clean(args) -> int:
+    from . import registry
+    from .core.motion import Observation
+    from .io import write_bvh
+    from .io.mask import read_mask
+
+    motion = _read(args.input)
+    mask_path = args.mask or (str(args.input) + ".mask.json" if Path(str(args.input) + ".mask.json").exists() else None)
+    observed = None
+    if mask_path:
+        observed = read_mask(mask_path, motion.skeleton, motion.n_frames)
+        if not args.mask:
+            print(f"note: using the mask sidecar {mask_path}", file=sys.stderr)
+    obs = Observation(motion, observed)
+    engine = registry.create(args.engine)
+    t0 = time.perf_counter()
+    result = engine.clean(obs)
+    dt = time.perf_counter() - t0
+    write_bvh(args.output, result.motion)
+    print(f"wrote {args.output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
+          f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled")
+    return 0
+
+
+# -- bench ------------------------------------------------------------------------------
+def _bench_clips(args):
+    from .data import catalogue, find_data_root, select
+
+    root = find_data_root(args.data)
+    clips = catalogue(root)
+    if args.data and not any(c.split for c in clips):
+        chosen = select(clips, None, pattern=args.clips)
+    else:
+        chosen = select(clips, args.split, dataset=None if args.data else "cmu", pattern=args.clips)
+    if not chosen:
+        raise UserError(f"no clips match split={args.split!r} clips={args.clips!r} under {root}")
+    return [(c.id, c.load()) for c in chosen]
+
+
+def cmd_bench(args) -> int:
+    from .evaluate import run_benchmark
+
+    specs = split_engine_specs(args.engines)
+    clips = _bench_clips(args)
+    seeds = list(range(args.seed0, args.seed0 + args.seeds))
+    print(f"benchmark: {len(specs)} engines x {len(clips)} clips x {len(seeds)} seeds, corruption {args.corrupt}",
+          file=sys.stderr)
+    progress = None
+    if args.verbose:
+        def progress(msg):
+            print("  " + msg, file=sys.stderr)
+    result = run_benchmark(specs, args.corrupt, clips, seeds, progress=progress)
+    print(result.markdown())
+    if args.json:
+        from .io.atomic import atomic_write_text
+
+        atomic_write_text(args.json, json.dumps(result.to_json(), indent=1, default=float) + "\n")
+        print(f"wrote {args.json}", file=sys.stderr)
+    return 0
+
+
+# -- train ------------------------------------------------------------------------------
+def cmd_train(args) -> int:
+    from . import registry
+    from .data import catalogue, find_data_root, select
+    from .engine import EngineError
+    from .evaluate import run_benchmark
+
+    spec = args.engine
+    if args.epochs is not None:
+        spec += ("," if ":" in spec else ":") + f"epochs={args.epochs}"
+    engine = registry.create(spec, pretrained=False)
+    if not engine.info.trainable:
+        raise UserError(f"engine {engine.info.name!r} has nothing to train")
+    root = find_data_root(args.data)
+    clips = catalogue(root)
+    train = select(clips, "train") or select(clips, None)
+    if not train:
+        raise UserError(f"no training clips under {root}")
+    motions = [c.load() for c in train]
+    layouts = {m.skeleton.signature() for m in motions}
+    if len(layouts) > 1:
+        keep = motions[0].skeleton.signature()
+        motions = [m for m in motions if m.skeleton.signature() == keep]
+        print(f"note: training on the {len(motions)} clips of the first clip's skeleton only", file=sys.stderr)
+    print(f"training {engine.spec} on {len(motions)} clips ({sum(m.n_frames for m in motions):,} frames)",
+          file=sys.stderr)
+    t0 = time.perf_counter()
+    try:
+        engine.fit(motions)
+    except KeyboardInterrupt:
+        raise UserError("training interrupted; nothing was saved") from None
+    minutes = (time.perf_counter() - t0) / 60
+    test = [(c.id, c.load()) for c in select(clips, "test")]
+    validation = {}
+    if test:
+        corruption = "angular:0.5" if "denoise" in engine.info.tasks else "gaps:0.01"
+        summary = run_benchmark([engine], corruption, test, seeds=[0]).summary[engine.spec]
+        validation = {"corruption": corruption, "split": "test", "seeds": [0], **summary}
+        print(f"test split, {corruption}: " + ", ".join(f"{k} {v:.3f}" for k, v in summary.items()), file=sys.stderr)
+    out = Path(args.out or Path("runs") / engine.info.name)
+    try:
+        manifest = engine.save(out, {"training": {"clips": [c.id for c in train], "split": "train",
+                                                  "minutes": round(minutes, 2)}, "validation": validation})
+    except EngineError as err:
+        raise UserError(str(err)) from None
+    print(f"trained in {minutes:.1f} min; saved {manifest}")
+    if args.promote:
+        import shutil
+
+        dest = engine.default_weights_dir()
+        dest.mkdir(parents=True, exist_ok=True)
+        for f in out.iterdir():
+            shutil.copy2(f, dest / f.name)
+        print(f"promoted to {dest}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
+    p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+
+    def data_opt(sp):
+        sp.add_argument("--data", metavar="DIR", help="data root (default: $WORKBENCH_DATA, datasets/, ../shared/data)")
+
+    sp = sub.add_parser("data", help="list the clips and their train/test split")
+    data_opt(sp)
+    sp.add_argument("--split", choices=["train", "test", "all"], default="all")
+    sp.set_defaults(func=cmd_data)
+
+    sp = sub.add_parser("engines", help="list the registered engines and their parameters")
+    sp.set_defaults(func=cmd_engines)
+
+    sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
+    sp.add_argument("input")
+    sp.add_argument("-o", "--output", required=True)
+    sp.add_argument("--corrupt", required=True, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01")
+    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument("--keep-reference", action="store_true", help="keep a T-pose frame 0")
+    sp.set_defaults(func=cmd_corrupt)
+
+    sp = sub.add_parser("clean", help="clean a take with an engine and write BVH")
+    sp.add_argument("input")
+    sp.add_argument("-o", "--output", required=True)
+    sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
+    sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
+    sp.set_defaults(func=cmd_clean)
+
+    sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
+    sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
+    sp.add_argument("--corrupt", required=True, metavar="SPEC")
+    sp.add_argument("--split", choices=["train", "test", "all"], default="test")
+    data_opt(sp)
+    sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
+    sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
+    sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
+    sp.add_argument("--json", metavar="PATH")
+    sp.add_argument("-v", "--verbose", action="store_true")
+    sp.set_defaults(func=cmd_bench)
+
+    sp = sub.add_parser("train", help="train an engine on the training split")
+    sp.add_argument("engine", metavar="SPEC")
+    sp.add_argument("--epochs", type=int)
+    data_opt(sp)
+    sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<engine>)")
+    sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
+    sp.set_defaults(func=cmd_train)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        return args.func(args)
+    except _user_errors() as err:
+        msg = err.args[0] if isinstance(err, KeyError) and err.args else str(err)
+        print(f"workbench {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

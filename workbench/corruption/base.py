@@ -1,0 +1,191 @@
+"""Shared machinery of the corruption models: parameters, spec text, random streams and
+the working state a chain of models edits.
+
+Units: angles in degrees, root positions in the skeleton's file unit
+(``skeleton.unit_cm`` cm each), time in frames at ``motion.fps``; spatial noise levels
+are given in centimetres.
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass, fields
+from functools import cached_property
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..core.channels import unwrap_deg
+from ..core.motion import Motion, angle_columns
+from .errors import CorruptionSpecError
+
+#: A channel whose clean std (degrees) is at most this counts as constant.
+ZERO_STD_DEG = 1e-9
+
+_REQUIRED = object()
+
+# kind -> (description used in messages, integer?, lower bound, upper bound)
+_KINDS: dict[str, tuple[str, bool, float, float]] = {
+    "scale": ("a number >= 0", False, 0.0, math.inf),
+    "cm": ("a length in cm >= 0", False, 0.0, math.inf),
+    "prob": ("a probability in [0, 1]", False, 0.0, 1.0),
+    "mean-frames": ("a number of frames >= 1", False, 1.0, math.inf),
+    "count": ("a whole number >= 0", True, 0.0, math.inf),
+    "frames": ("a whole number of frames >= 1", True, 1.0, math.inf),
+    "frame": ("a frame index (whole number >= 0)", True, 0.0, math.inf),
+}
+
+
+@dataclass(frozen=True)
+class Param:
+    """One positional parameter of a model: its name in help texts, its kind (which sets
+    the type and the valid range) and its default (``REQUIRED`` if it has none; ``None``
+    means "drawn at random")."""
+
+    name: str
+    kind: str
+    help: str
+    default: Any = _REQUIRED
+
+    @property
+    def required(self) -> bool:
+        return self.default is _REQUIRED
+
+
+REQUIRED = _REQUIRED
+
+
+def format_number(x: float | int) -> str:
+    """Shortest text that reads back to the same number: ``0.5``, ``12``, ``1e-05``."""
+    x = float(x)
+    if x.is_integer() and abs(x) < 1e15:
+        return str(int(x))
+    return repr(x)
+
+
+def random_stream(seed: int, position: int, name: str) -> np.random.Generator:
+    """The random stream of the model at ``position`` (0-based) in a chain applied with
+    ``seed``: independent of every other model's stream."""
+    return np.random.default_rng([int(seed), int(position), zlib.crc32(name.encode("utf-8"))])
+
+
+class Work:
+    """The state a chain of models edits in place: the channel matrix (F, 3 + 3J) of the
+    corrupted motion and the observed mask (F, J). Values under the mask are kept (not
+    NaN) until the end so later models can still use them; statistics come from the
+    clean clip."""
+
+    def __init__(self, clean: Motion) -> None:
+        self.clean = clean
+        self.channels = clean.channels.copy()
+        self.observed = np.ones((clean.n_frames, clean.skeleton.n_joints), dtype=bool)
+
+    @property
+    def n_frames(self) -> int:
+        return self.clean.n_frames
+
+    @property
+    def skeleton(self):
+        return self.clean.skeleton
+
+    @cached_property
+    def angle_cols(self) -> np.ndarray:
+        """Columns of the joint-angle channels (every joint but the root)."""
+        return angle_columns(self.skeleton)
+
+    @cached_property
+    def angle_std(self) -> np.ndarray:
+        """Std (degrees) of each joint-angle channel of the clean clip, on unwrapped
+        angles; exactly 0 for (numerically) constant channels."""
+        X = unwrap_deg(self.clean.channels[:, self.angle_cols])
+        std = X.std(axis=0)
+        std[std <= ZERO_STD_DEG] = 0.0
+        return std
+
+    def motion(self) -> Motion:
+        """The current values as a Motion (no NaN)."""
+        return self.clean.with_channels(self.channels)
+
+
+class Model:
+    """Base of the corruption models. Subclasses are frozen dataclasses whose fields are
+    the parameters, in the order of ``params``; they set ``name``, ``description`` (one
+    line) and ``params`` and implement :meth:`corrupt`."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    params: ClassVar[tuple[Param, ...]] = ()
+
+    # -- construction and validation -------------------------------------------------
+    def __post_init__(self) -> None:
+        for p, f in zip(self.params, fields(self)):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            object.__setattr__(self, f.name, self._check(p, value))
+        self.validate()
+
+    def validate(self) -> None:
+        """Checks between parameters (raise CorruptionSpecError)."""
+
+    def _error(self, message: str) -> CorruptionSpecError:
+        return CorruptionSpecError(f"{self.name}: {message}")
+
+    @classmethod
+    def _check(cls, p: Param, value: Any) -> Any:
+        if value is None and not p.required and p.default is None:
+            return None
+        what, integer, lo, hi = _KINDS[p.kind]
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {value!r}")
+        x = float(value)
+        if not math.isfinite(x):
+            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {format_number(x)}")
+        if integer and not x.is_integer():
+            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {format_number(x)}")
+        if not lo <= x <= hi:
+            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {format_number(x)}")
+        return int(x) if integer else x + 0.0  # + 0.0 turns -0.0 into 0.0
+
+    @classmethod
+    def signature(cls) -> str:
+        """``name:A,B[,C]`` for help texts."""
+        req = [p.name for p in cls.params if p.required]
+        opt = [p.name for p in cls.params if not p.required]
+        return f"{cls.name}:{','.join(req)}" + "".join(f"[,{name}" for name in opt) + "]" * len(opt)
+
+    @classmethod
+    def from_args(cls, args: list[str]) -> "Model":
+        """Build from the comma-separated parameter texts of a spec."""
+        n_req = sum(p.required for p in cls.params)
+        n_all = len(cls.params)
+        if not n_req <= len(args) <= n_all:
+            names = ", ".join(p.name if p.required else f"{p.name} (optional)" for p in cls.params)
+            want = f"{n_req}" if n_req == n_all else f"{n_req} to {n_all}"
+            raise CorruptionSpecError(
+                f"{cls.name}: takes {want} parameter{'s' if n_all > 1 else ''} ({names}), got {len(args)}; "
+                f"usage: {cls.signature()}")
+        values: list[Any] = []
+        for p, text in zip(cls.params, args):
+            text = text.strip()
+            try:
+                values.append(float(text))
+            except ValueError:
+                raise CorruptionSpecError(
+                    f"{cls.name}: {p.name} must be {_KINDS[p.kind][0]}, got {text!r}; usage: {cls.signature()}"
+                ) from None
+        return cls(*values)  # type: ignore[call-arg]
+
+    # -- text ----------------------------------------------------------------------------
+    def values(self) -> tuple[Any, ...]:
+        return tuple(getattr(self, f.name) for f in fields(self))  # type: ignore[arg-type]
+
+    def __str__(self) -> str:
+        vals = list(self.values())
+        while vals and not self.params[len(vals) - 1].required and vals[-1] == self.params[len(vals) - 1].default:
+            vals.pop()
+        return f"{self.name}:{','.join(format_number(v) for v in vals)}"
+
+    # -- application ---------------------------------------------------------------------
+    def corrupt(self, work: Work, rng: np.random.Generator) -> None:
+        """Edit ``work`` in place, drawing only from ``rng``."""
+        raise NotImplementedError

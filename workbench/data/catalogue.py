@@ -1,0 +1,159 @@
+"""The clip catalogue: every clip under a data root, with its category, subject and split.
+
+A dataset folder with a ``MANIFEST.csv`` (columns file, category, subject, trial, ...)
+is read from it; any other folder of BVH files is catalogued by walking it, the
+category being the parent folder's name. Clip ids are ``dataset/relative/path`` without
+the suffix, e.g. ``cmu/walk/02_01``.
+
+Reference frames: the cgspeed conversions put a T-pose (rest) frame in frame 0 that was
+never captured. :meth:`Clip.load` drops it when frame 0 looks like one: its root
+rotation is exactly zero and its joint angles are on average less than half of
+frame 1's. ``Clip.load(keep_reference=True)`` keeps every frame.
+
+Splits: ``workbench/data/splits/<dataset>.json`` lists the test clips of a dataset
+(whole subjects held out); every other clip of that dataset is training data. Clips of
+datasets without a split file are in neither (split ``""``), so they are never trained on
+by accident.
+"""
+
+from __future__ import annotations
+
+import csv
+import fnmatch
+import json
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from ..core.motion import Motion
+from ..io import read_motion
+from .roots import find_data_root
+
+SPLITS_DIR = Path(__file__).resolve().parent / "splits"
+
+
+@dataclass(frozen=True)
+class Clip:
+    """One take in the catalogue. ``frames`` counts the file's frames (reference
+    frame included) when known, else 0."""
+
+    id: str
+    path: Path
+    dataset: str
+    category: str
+    subject: str
+    split: str
+    frames: int = 0
+    fps: float = 0.0
+
+    def load(self, keep_reference: bool = False) -> Motion:
+        motion = read_motion(self.path)
+        if not keep_reference and has_reference_frame(motion):
+            motion = motion.slice(1)
+        return motion.replace(name=self.id)
+
+
+def has_reference_frame(motion: Motion) -> bool:
+    """True when frame 0 is a rest/T-pose frame added by a converter (see module doc)."""
+    if motion.n_frames < 3:
+        return False
+    a = motion.angles_deg
+    root_zero = np.all(a[0, 0] == 0.0)
+    return bool(root_zero and np.mean(np.abs(a[0, 1:])) < 0.5 * np.mean(np.abs(a[1, 1:])))
+
+
+@lru_cache(maxsize=None)
+def load_split(dataset: str) -> dict:
+    path = SPLITS_DIR / f"{dataset}.json"
+    if not path.exists():
+        return {}
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def _split_of(dataset: str, clip_file: str) -> str:
+    split = load_split(dataset)
+    if not split:
+        return ""
+    stem = Path(clip_file).with_suffix("").as_posix()
+    return "test" if stem in split["test"] else "train"
+
+
+def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
+    manifest = folder / "MANIFEST.csv"
+    clips = []
+    if manifest.exists():
+        with open(manifest, newline="", encoding="utf-8") as fh:
+            for row in csv.DictReader(fh):
+                rel = row["file"]
+                clips.append(
+                    Clip(
+                        id=f"{dataset}/{Path(rel).with_suffix('').as_posix()}",
+                        path=folder / rel,
+                        dataset=dataset,
+                        category=row.get("category", "") or Path(rel).parent.name,
+                        subject=row.get("subject", ""),
+                        split=_split_of(dataset, rel),
+                        frames=int(row.get("frames") or 0),
+                        fps=float(row.get("fps") or 0.0),
+                    )
+                )
+        return clips
+    for path in sorted(folder.rglob("*.bvh")):
+        rel = path.relative_to(folder).as_posix()
+        clips.append(
+            Clip(
+                id=f"{dataset}/{Path(rel).with_suffix('').as_posix()}" if dataset else Path(rel).with_suffix("").as_posix(),
+                path=path,
+                dataset=dataset,
+                category=path.parent.name if path.parent != folder else "",
+                subject=path.stem.split("_")[0],
+                split=_split_of(dataset, rel) if dataset else "",
+            )
+        )
+    return clips
+
+
+def catalogue(root: str | Path | None = None) -> list[Clip]:
+    """Every clip under a data root (found as in :func:`find_data_root` when ``root`` is
+    None), sorted by id."""
+    root = find_data_root(root) if root is None or not Path(root).is_dir() else Path(root)
+    if (root / "MANIFEST.csv").exists():
+        clips = _dataset_clips(root, root.name)
+    else:
+        clips = []
+        subdirs = [d for d in sorted(root.iterdir()) if d.is_dir() and (d / "MANIFEST.csv").exists()]
+        for d in subdirs:
+            clips += _dataset_clips(d, d.name)
+        if not subdirs:
+            clips = _dataset_clips(root, "")
+    return sorted(clips, key=lambda c: c.id)
+
+
+def select(clips: list[Clip], split: str | None = None, dataset: str | None = None,
+           pattern: str | None = None) -> list[Clip]:
+    """Filter clips: ``split`` "train"/"test"/"all", ``dataset`` name, ``pattern`` a glob
+    on the clip id (``cmu/walk/*``)."""
+    out = clips
+    if split and split != "all":
+        out = [c for c in out if c.split == split]
+    if dataset:
+        out = [c for c in out if c.dataset == dataset]
+    if pattern:
+        out = [c for c in out if fnmatch.fnmatch(c.id, pattern) or fnmatch.fnmatch(c.id, f"*{pattern}*")]
+    return out
+
+
+def find_clip(name: str, root: str | Path | None = None) -> Clip:
+    """A clip by id (``cmu/walk/02_01``) or unique suffix (``02_01``)."""
+    clips = catalogue(root)
+    exact = [c for c in clips if c.id == name]
+    if exact:
+        return exact[0]
+    hits = [c for c in clips if c.id.endswith("/" + name) or c.id.endswith(name)]
+    if len(hits) == 1:
+        return hits[0]
+    if not hits:
+        raise KeyError(f"no clip named {name!r} in the catalogue; `workbench data` lists them")
+    raise KeyError(f"{name!r} is ambiguous: {', '.join(c.id for c in hits[:6])}")

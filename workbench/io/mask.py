@@ -1,0 +1,55 @@
+"""The observed-mask sidecar written next to a corrupted BVH: JSON listing, per joint,
+the missing frame spans ``[start, stop)`` (frame indices of the BVH's motion section)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..core.skeleton import Skeleton
+from .atomic import atomic_write_text
+from .errors import MotionFileError
+
+FORMAT = "mocap-workbench observed mask v1"
+
+
+def mask_to_json(observed: np.ndarray, skeleton: Skeleton) -> str:
+    missing = {}
+    for j, name in enumerate(skeleton.names):
+        m = ~observed[:, j]
+        if m.any():
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], m.astype(np.int8), [0]])))
+            missing[name] = edges.reshape(-1, 2).tolist()
+    doc = {"format": FORMAT, "frames": int(observed.shape[0]), "joints": list(skeleton.names), "missing": missing}
+    return json.dumps(doc, indent=1) + "\n"
+
+
+def write_mask(path: str | Path, observed: np.ndarray, skeleton: Skeleton) -> None:
+    atomic_write_text(path, mask_to_json(np.asarray(observed, bool), skeleton))
+
+
+def read_mask(path: str | Path, skeleton: Skeleton, n_frames: int) -> np.ndarray:
+    """The observed mask (F, J) from a sidecar; checked against the take it belongs to."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as err:
+        raise MotionFileError(path, f"cannot read the mask file ({err.strerror or err})") from None
+    except ValueError as err:
+        raise MotionFileError(path, f"not a JSON mask file ({err})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise MotionFileError(path, f"not a mask sidecar: expected format {FORMAT!r}")
+    if doc.get("frames") != n_frames:
+        raise MotionFileError(path, f"the mask is for {doc.get('frames')} frames, the take has {n_frames}")
+    observed = np.ones((n_frames, skeleton.n_joints), bool)
+    for name, spans in doc.get("missing", {}).items():
+        if name not in skeleton.names:
+            raise MotionFileError(path, f"the mask names joint {name!r}, which the take's skeleton lacks")
+        j = skeleton.names.index(name)
+        for span in spans:
+            if not (isinstance(span, list) and len(span) == 2 and 0 <= span[0] < span[1] <= n_frames):
+                raise MotionFileError(path, f"joint {name!r}: bad span {span!r} (want [start, stop) within the take)")
+            observed[span[0]:span[1], j] = False
+    return observed

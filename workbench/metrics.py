@@ -1,0 +1,106 @@
+"""Pure metric functions comparing a cleaned (or noisy) Motion with the truth.
+
+Units are in the names: ``_deg`` degrees, ``_cm`` centimetres (file units times
+``skeleton.unit_cm``). Angle errors are wrap-safe (differences taken modulo 360).
+"Joint-angle channels" are the rotation channels of every joint but the root
+(:func:`workbench.core.motion.angle_columns`), as scored by Mall et al.; position errors
+are root-aligned (the root position is subtracted from every joint, per frame), as in
+Kaufmann et al.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .core.motion import Motion, angle_columns
+
+
+def _check(truth: Motion, estimate: Motion) -> None:
+    if not truth.skeleton.same_layout(estimate.skeleton):
+        raise ValueError("metrics need two motions of the same skeleton layout")
+    if truth.n_frames != estimate.n_frames:
+        raise ValueError(f"frame counts differ: truth {truth.n_frames}, estimate {estimate.n_frames}")
+
+
+def angle_error_deg(truth: Motion, estimate: Motion) -> np.ndarray:
+    """(F, C) signed wrap-safe errors of the joint-angle channels, in degrees."""
+    _check(truth, estimate)
+    cols = angle_columns(truth.skeleton)
+    d = estimate.channels[:, cols] - truth.channels[:, cols]
+    return (d + 180.0) % 360.0 - 180.0
+
+
+def rms_angle_deg_per_frame(truth: Motion, estimate: Motion) -> np.ndarray:
+    """(F,) RMS over all joint-angle channels at each frame (Mall et al.'s Fig. 4 curve)."""
+    return np.sqrt(np.mean(angle_error_deg(truth, estimate) ** 2, axis=1))
+
+
+def rms_angle_deg(truth: Motion, estimate: Motion) -> float:
+    """Mean over frames of the per-frame RMS joint-angle error (Mall et al.'s figure)."""
+    return float(np.mean(rms_angle_deg_per_frame(truth, estimate)))
+
+
+def joint_position_error_cm(truth: Motion, estimate: Motion) -> np.ndarray:
+    """(F, J) root-aligned Euclidean joint position errors in cm."""
+    _check(truth, estimate)
+    t = truth.positions - truth.positions[:, :1]
+    e = estimate.positions - estimate.positions[:, :1]
+    return np.linalg.norm(e - t, axis=2) * truth.skeleton.unit_cm
+
+
+def mpjpe_cm(truth: Motion, estimate: Motion) -> float:
+    """Mean per-joint position error, root-aligned, in cm (Kaufmann et al.)."""
+    return float(np.mean(joint_position_error_cm(truth, estimate)))
+
+
+def gap_mpjpe_cm(truth: Motion, estimate: Motion, observed: np.ndarray) -> float:
+    """Root-aligned mean joint position error over the missing entries only (observed
+    (F, J) False), in cm; NaN when nothing is missing."""
+    missing = ~np.asarray(observed, bool)
+    if not missing.any():
+        return float("nan")
+    return float(np.mean(joint_position_error_cm(truth, estimate)[missing]))
+
+
+def bone_lengths(positions: np.ndarray, parents) -> np.ndarray:
+    """(F, J-1) length of every bone (parent to child, in joint order after the root),
+    in the units of ``positions`` (F, J, 3). Works on raw network output too."""
+    pairs = [(p, j) for j, p in enumerate(parents) if p >= 0]
+    par = np.array([p for p, _ in pairs])
+    child = np.array([j for _, j in pairs])
+    return np.linalg.norm(positions[:, child] - positions[:, par], axis=2)
+
+
+def bone_length_stats_cm(positions: np.ndarray, motion_like: Motion) -> dict[str, np.ndarray]:
+    """Per-bone mean and standard deviation (cm) over time of bone lengths measured on
+    ``positions`` (F, J, 3) in ``motion_like``'s skeleton units. Keys: ``mean``, ``std``
+    (each (J-1,)), ``bones`` (J-1, 2) parent/child indices."""
+    lengths = bone_lengths(positions, motion_like.skeleton.parents) * motion_like.skeleton.unit_cm
+    return {
+        "mean": lengths.mean(axis=0),
+        "std": lengths.std(axis=0),
+        "bones": np.array(motion_like.skeleton.bones),
+    }
+
+
+def jitter_cm_s3(motion: Motion) -> float:
+    """Mean magnitude of the jerk (third time derivative) of root-aligned joint positions,
+    in cm/s^3: high for jittery motion, low for smooth motion."""
+    if motion.n_frames < 4:
+        return float("nan")
+    p = (motion.positions - motion.positions[:, :1]) * motion.skeleton.unit_cm
+    jerk = np.diff(p, n=3, axis=0) * motion.fps**3
+    return float(np.mean(np.linalg.norm(jerk, axis=2)))
+
+
+def score(truth: Motion, estimate: Motion, observed: np.ndarray | None = None) -> dict[str, float]:
+    """The headline numbers of one result: rms_angle_deg, mpjpe_cm, gap_mpjpe_cm (only
+    when ``observed`` has missing entries) and jitter_cm_s3."""
+    out = {
+        "rms_angle_deg": rms_angle_deg(truth, estimate),
+        "mpjpe_cm": mpjpe_cm(truth, estimate),
+        "jitter_cm_s3": jitter_cm_s3(estimate),
+    }
+    if observed is not None and not np.asarray(observed, bool).all():
+        out["gap_mpjpe_cm"] = gap_mpjpe_cm(truth, estimate, observed)
+    return out

@@ -1,0 +1,151 @@
+"""The engine conformance suite.
+
+``check_engine(make_engine, clean_motion, foreign_motion)`` runs every check in
+:data:`CHECKS` and raises AssertionError naming the engine and the broken rule.
+``make_engine()`` must return a ready engine (trained engines already fitted or
+loaded); ``clean_motion`` is a short clean take of the engine's skeleton and
+``foreign_motion`` a take of another skeleton layout.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .. import registry
+from ..core.motion import Motion, Observation, channel_mask
+from ..engine import CleanResult, EngineError, EngineInfo, NotFittedError
+
+
+def _noisy(motion: Motion, seed: int = 7, gaps: bool = False) -> Observation:
+    """A noisy observation (0.5 x channel std Gaussian noise on every non-root angle),
+    optionally with a 20-frame gap in three joints and a few scattered missing samples."""
+    rng = np.random.default_rng(seed)
+    X = motion.channels
+    std = X[:, 6:].std(axis=0)
+    X[:, 6:] += rng.normal(size=X[:, 6:].shape) * 0.5 * std
+    observed = np.ones((motion.n_frames, motion.skeleton.n_joints), bool)
+    if gaps:
+        F = motion.n_frames
+        for j in (2, motion.skeleton.n_joints // 2, motion.skeleton.n_joints - 1):
+            observed[F // 3:F // 3 + 20, j] = False
+        observed[rng.random(observed.shape) < 0.02] = False
+        observed[:, 0] = True
+    return Observation(motion.with_channels(X), observed)
+
+
+def _same_frame(a: Motion, b: Motion) -> bool:
+    return (a.skeleton.allclose(b.skeleton) and a.fps == b.fps and a.n_frames == b.n_frames)
+
+
+def check_info(engine, name: str, **_) -> None:
+    assert isinstance(engine.info, EngineInfo), f"{name}: info must be an EngineInfo"
+    assert engine.info.tasks, f"{name}: info.tasks is empty"
+
+
+def check_shapes_and_finite(engine, name: str, motion: Motion, **_) -> None:
+    for obs in (_noisy(motion), _noisy(motion, gaps=True)):
+        res = engine.clean(obs)
+        assert isinstance(res, CleanResult), f"{name}: clean must return a CleanResult"
+        assert _same_frame(res.motion, motion), f"{name}: skeleton, fps or frame count changed"
+        assert np.isfinite(res.motion.channels).all(), f"{name}: output has NaN or inf (gaps={obs.has_gaps})"
+        for key, arr in res.diagnostics.items():
+            assert np.shape(arr)[0] == motion.n_frames, f"{name}: diagnostic {key!r} must have frames first"
+
+
+def check_input_untouched(engine, name: str, motion: Motion, **_) -> None:
+    obs = _noisy(motion, gaps=True)
+    before = obs.motion.channels.copy(), obs.observed.copy()
+    engine.clean(obs)
+    assert np.array_equal(obs.motion.channels, before[0], equal_nan=True), f"{name}: clean changed its input"
+    assert np.array_equal(obs.observed, before[1]), f"{name}: clean changed the observed mask"
+
+
+def check_deterministic(engine, name: str, motion: Motion, **_) -> None:
+    obs = _noisy(motion, gaps=True)
+    a, b = engine.clean(obs).motion.channels, engine.clean(obs).motion.channels
+    assert np.array_equal(a, b), f"{name}: two cleans of the same input differ"
+
+
+def check_keeps_observed(engine, name: str, motion: Motion, **_) -> None:
+    if not engine.info.keeps_observed:
+        return
+    obs = _noisy(motion, gaps=True)
+    out = engine.clean(obs).motion.channels
+    mask = channel_mask(obs.observed)
+    assert np.allclose((out - obs.motion.channels)[:, :3][mask[:, :3]], 0, atol=1e-6), \
+        f"{name}: says keeps_observed but moved observed root positions"
+    ang = ((out - obs.motion.channels)[:, 3:] + 180.0) % 360.0 - 180.0
+    assert np.allclose(ang[mask[:, 3:]], 0, atol=1e-6), f"{name}: says keeps_observed but changed observed angles"
+
+
+def check_foreign_skeleton(engine, name: str, motion: Motion, foreign: Motion | None = None, **_) -> None:
+    if foreign is None:
+        return
+    obs = _noisy(foreign)
+    if engine.info.trainable:
+        try:
+            engine.clean(obs)
+        except EngineError as err:
+            assert "skeleton" in str(err), f"{name}: the foreign-skeleton error should say so: {err}"
+            return
+        raise AssertionError(f"{name}: a trained engine must refuse a skeleton it was not trained for")
+    res = engine.clean(obs)
+    assert _same_frame(res.motion, foreign) and np.isfinite(res.motion.channels).all(), \
+        f"{name}: skeleton-agnostic engine failed on a second skeleton"
+
+
+def check_spec_round_trip(engine, name: str, **_) -> None:
+    again = registry.create(engine.spec, pretrained=False)
+    assert again.spec == engine.spec, f"{name}: spec {engine.spec!r} does not round-trip ({again.spec!r})"
+
+
+def check_unfitted(engine, name: str, motion: Motion, **_) -> None:
+    if not engine.info.trainable:
+        return
+    fresh = registry.create(engine.spec, pretrained=False)
+    try:
+        fresh.clean(_noisy(motion))
+    except NotFittedError:
+        return
+    raise AssertionError(f"{name}: an unfitted trainable engine must raise NotFittedError")
+
+
+CHECKS: dict[str, Callable] = {
+    "info": check_info,
+    "shapes_and_finite": check_shapes_and_finite,
+    "input_untouched": check_input_untouched,
+    "deterministic": check_deterministic,
+    "keeps_observed": check_keeps_observed,
+    "foreign_skeleton": check_foreign_skeleton,
+    "spec_round_trip": check_spec_round_trip,
+    "unfitted": check_unfitted,
+}
+
+
+def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | None = None,
+                 checks: list[str] | None = None) -> None:
+    """Run the conformance checks (all, or the named ones) on one engine."""
+    engine = make_engine()
+    name = engine.info.name
+    for key in checks or list(CHECKS):
+        CHECKS[key](engine, name=name, motion=motion, foreign=foreign)
+
+
+def conformance_clips(root=None, frames: int = 150) -> tuple[Motion, Motion]:
+    """Two short clean takes of different skeletons from the data root (a CMU walk and a
+    cmu-daz kick when present)."""
+    from ..data import catalogue
+
+    clips = catalogue(root)
+    by_layout: dict[str, Motion] = {}
+    for clip in clips:
+        if clip.split not in ("train", ""):
+            continue
+        m = clip.load()
+        by_layout.setdefault(m.skeleton.signature(), m.slice(0, frames))
+        if len(by_layout) == 2:
+            break
+    motions = list(by_layout.values())
+    return motions[0], (motions[1] if len(motions) > 1 else None)
