@@ -21,8 +21,8 @@ No motion data found. Looked in:
 Point the workbench at a folder of BVH files with --data DIR or the {env} environment
 variable, or put clips under datasets/ in the repository (see datasets/README.md).
 The CMU clips this project uses are the cgspeed BVH conversion of the CMU Graphics Lab
-Motion Capture Database (http://mocap.cs.cmu.edu); on a machine with internet access,
-`workbench data --download datasets/cmu` fetches the clips listed in a MANIFEST.csv."""
+Motion Capture Database (http://mocap.cs.cmu.edu): download the BVH files of subjects
+02-09 there (cmuconvert-mb2-01-09) and unpack them under datasets/cmu/<category>/."""
 
 
 class DataNotFoundError(FileNotFoundError):
