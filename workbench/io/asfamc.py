@@ -1,6 +1,7 @@
 """CMU / Acclaim ASF (skeleton) and AMC (motion) reading.
 
-The ASF model: every bone has a rest ``direction`` (unit vector, world axes), a
+The ASF model: every bone has a rest ``direction`` (a unit vector in world axes, used
+as written, not renormalised: the bone vector is ``direction * length``), a
 ``length``, an ``axis`` ``ax ay az ORDER`` giving its local frame C (the three numbers are
 the angles about the axes named by ORDER, applied in that order: ``XYZ`` means
 ``C = Rz(az) Ry(ay) Rx(ax)`` on column vectors) and ``dof`` (a subset of ``rx ry rz``).
@@ -210,6 +211,8 @@ def _parse_asf(path: Path) -> AsfModel:
                 root_orientation = _numbers(words[1:], 3, "root 'orientation'", path, n)
             elif kind == "position":
                 _numbers(words[1:], 3, "root 'position'", path, n)
+            else:
+                fail(f":root: unknown keyword {key!r}", n)
         elif section == ":bonedata":
             kind = key.lower()
             if kind == "begin":
@@ -339,13 +342,8 @@ def _finish_bone(bone: _Bone, bones: dict[str, _Bone], path: Path) -> None:
     for key in ("direction", "length", "axis"):
         if getattr(bone, key) is None:
             raise MotionFileError(path, f"bone {bone.name!r} ({where}) has no '{key}'", bone.line)
-    norm = float(np.linalg.norm(bone.direction))
-    if norm < 1e-12:
-        if bone.length > 0:
-            raise MotionFileError(path, f"bone {bone.name!r} has a zero 'direction'", bone.line)
-        bone.direction = np.zeros(3)
-    else:
-        bone.direction = bone.direction / norm
+    if bone.length > 0 and float(np.linalg.norm(bone.direction)) < 1e-12:
+        raise MotionFileError(path, f"bone {bone.name!r} has a zero 'direction'", bone.line)
     bones[bone.name] = bone
 
 

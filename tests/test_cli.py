@@ -1,0 +1,91 @@
+"""The command line, end to end, in-process (fast) and once as a real subprocess."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from workbench.cli import main, split_engine_specs
+from workbench.io import read_bvh
+from workbench.io.mask import read_mask
+
+
+def test_split_engine_specs():
+    assert split_engine_specs(["ebf:bias=true,free=1,gaussian", "lerp>gaussian:sigma_ms=58"]) == [
+        "ebf:bias=true,free=1", "gaussian", "lerp>gaussian:sigma_ms=58"]
+
+
+def test_engines_and_data_listing(capsys):
+    assert main(["engines"]) == 0
+    assert "identity" in capsys.readouterr().out
+    assert main(["data", "--split", "test"]) == 0
+    out = capsys.readouterr().out
+    assert "cmu/walk/35_31" in out and "cmu/walk/02_01" not in out
+
+
+def test_corrupt_then_clean(tmp_path, data_root, capsys):
+    src = data_root / "cmu" / "walk" / "02_01.bvh"
+    noisy = tmp_path / "noisy.bvh"
+    assert main(["corrupt", str(src), "-o", str(noisy), "--corrupt", "angular:0.5+gaps:0.01", "--seed", "3"]) == 0
+    m = read_bvh(noisy)
+    mask = read_mask(str(noisy) + ".mask.json", m.skeleton, m.n_frames)
+    assert m.n_frames == 343 and np.isfinite(m.channels).all() and 0 < (~mask).sum()
+    out = tmp_path / "clean.bvh"
+    assert main(["clean", str(noisy), "-o", str(out), "--engine", "identity"]) == 0
+    assert read_bvh(out).n_frames == 343
+    assert "mask sidecar" in capsys.readouterr().err
+    # same seed, same file
+    again = tmp_path / "again.bvh"
+    main(["corrupt", str(src), "-o", str(again), "--corrupt", "angular:0.5+gaps:0.01", "--seed", "3"])
+    assert again.read_text() == noisy.read_text()
+
+
+def test_clean_treats_nan_as_missing(tmp_path, walk):
+    from workbench.io.bvh import format_bvh
+
+    text = format_bvh(walk.slice(0, 30)).splitlines()
+    vals = text[-10].split()
+    vals[20] = "nan"
+    text[-10] = " ".join(vals)
+    src = tmp_path / "nan.bvh"
+    src.write_text("\n".join(text) + "\n")
+    out = tmp_path / "out.bvh"
+    assert main(["clean", str(src), "-o", str(out), "--engine", "identity"]) == 0
+    assert np.isfinite(read_bvh(out).channels).all()
+
+
+@pytest.mark.parametrize("args,needle", [
+    (["clean", "missing.bvh", "-o", "{tmp}/o.bvh", "--engine", "identity"], "cannot read"),
+    (["clean", "{bad}", "-o", "{tmp}/o.bvh", "--engine", "identity"], "truncated"),
+    (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "nope"], "unknown engine"),
+    (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),
+    (["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--data", "{tmp}/none"], "not a folder"),
+])
+def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, data_root, capsys):
+    good = data_root / "cmu" / "walk" / "02_01.bvh"
+    bad = tmp_path / "bad.bvh"
+    bad.write_text("\n".join(good.read_text().splitlines()[:-5]) + "\n")
+    args = [a.format(tmp=tmp_path, bad=bad, good=good) for a in args]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err and err.count("\n") <= 3
+    assert not (tmp_path / "o.bvh").exists()
+
+
+def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
+    js = tmp_path / "b.json"
+    assert main(["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--split", "test",
+                 "--clips", "cmu/run/*", "--seeds", "2", "--json", str(js)]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].startswith("| engine | rms_angle_deg | mpjpe_cm")
+    doc = json.loads(js.read_text())
+    s = doc["summary"]["identity"]
+    assert s["rms_angle_deg"] > 0 and s["frames_per_s"] > 0 and "gap_mpjpe_cm" not in s
+    assert len(doc["rows"]) == 2 * len(doc["clips"]) and all(c.startswith("cmu/run/") for c in doc["clips"])
+
+
+def test_module_entry_point_runs():
+    out = subprocess.run([sys.executable, "-m", "workbench", "engines"], capture_output=True, text=True)
+    assert out.returncode == 0 and "identity" in out.stdout

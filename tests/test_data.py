@@ -1,0 +1,65 @@
+import json
+
+import pytest
+
+from workbench.data import DataNotFoundError, catalogue, find_clip, find_data_root, select
+from workbench.data.catalogue import SPLITS_DIR
+
+
+def test_catalogue_reads_manifests(clips):
+    ids = {c.id for c in clips}
+    assert "cmu/walk/02_01" in ids and "cmu-daz/kick/10_01" in ids
+    assert {c.category for c in clips if c.dataset == "cmu"} == {"walk", "jog", "run", "jump", "other"}
+
+
+def test_split_holds_out_whole_subjects(clips):
+    cmu = [c for c in clips if c.dataset == "cmu"]
+    train, test = select(cmu, "train"), select(cmu, "test")
+    assert train and test and len(train) + len(test) == len(cmu)
+    assert not ({c.subject for c in train} & {c.subject for c in test})
+    assert {c.category for c in test} == {"walk", "jog", "run", "jump", "other"}
+    split = json.loads((SPLITS_DIR / "cmu.json").read_text())
+    assert sorted(split["test"]) == sorted(c.id.removeprefix("cmu/") for c in test)
+
+
+def test_reference_frame_is_dropped(clips):
+    clip = find_clip("cmu/walk/02_01")
+    assert clip.load().n_frames == clip.frames - 1
+    assert clip.load(keep_reference=True).n_frames == clip.frames
+    daz = find_clip("10_03")
+    assert daz.load().n_frames == daz.frames - 1
+
+
+def test_folder_of_bvh_files_without_manifest(tmp_path, data_root):
+    (tmp_path / "dance").mkdir()
+    src = data_root / "cmu" / "walk" / "02_01.bvh"
+    (tmp_path / "dance" / "x_01.bvh").write_bytes(src.read_bytes())
+    clips = catalogue(tmp_path)
+    assert [(c.id, c.category, c.split) for c in clips] == [("dance/x_01", "dance", "")]
+
+
+def test_data_root_order_and_errors(tmp_path, monkeypatch):
+    monkeypatch.setenv("WORKBENCH_DATA", str(tmp_path / "missing"))
+    with pytest.raises(DataNotFoundError, match="WORKBENCH_DATA points at"):
+        find_data_root()
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / "a.bvh").write_text("x")
+    monkeypatch.setenv("WORKBENCH_DATA", str(tmp_path / "d"))
+    assert find_data_root() == (tmp_path / "d").resolve()
+    assert find_data_root(tmp_path / "d") == (tmp_path / "d").resolve()
+
+
+def test_no_data_message_says_what_to_do(tmp_path, monkeypatch):
+    import workbench.data.roots as roots
+
+    monkeypatch.delenv("WORKBENCH_DATA", raising=False)
+    monkeypatch.setattr(roots, "REPO_ROOT", tmp_path / "repo")
+    with pytest.raises(DataNotFoundError) as info:
+        roots.find_data_root()
+    msg = str(info.value)
+    assert "--data" in msg and "WORKBENCH_DATA" in msg and "mocap.cs.cmu.edu" in msg
+
+
+def test_find_clip_errors():
+    with pytest.raises(KeyError, match="workbench data"):
+        find_clip("nope_99")

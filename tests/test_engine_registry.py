@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+
+from workbench import registry
+from workbench.core import Observation
+from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, Pipeline
+
+
+def test_identity_bridges_gaps_and_keeps_observed(walk):
+    observed = np.ones((walk.n_frames, walk.skeleton.n_joints), bool)
+    observed[50:60, 4] = False
+    res = registry.create("identity").clean(Observation(walk, observed))
+    X, T = res.motion.channels, walk.channels
+    assert np.isfinite(X).all()
+    c = 3 + 3 * 4
+    assert np.allclose(X[50:60, c], np.interp(np.arange(50, 60), [49, 60], [T[49, c], T[60, c]]))
+    keep = np.ones(X.shape[1], bool)
+    assert np.allclose(((X - T)[:50] + 180) % 360 - 180, 0)
+    del keep
+
+
+def test_unknown_engine_and_bad_params_are_clear():
+    with pytest.raises(EngineError, match="unknown engine 'nope'; available: .*identity"):
+        registry.create("nope")
+    with pytest.raises(EngineError, match="has no parameter 'x'"):
+        registry.create("identity:x=1")
+    with pytest.raises(EngineError, match="name=value"):
+        registry.create("identity:oops")
+
+
+class Doubler(Engine):
+    """A test engine with typed parameters."""
+
+    from dataclasses import dataclass as _dc
+
+    @_dc(frozen=True)
+    class Params:
+        gain: float = 1.0
+        flag: bool = False
+        label: str = "a"
+
+    info = EngineInfo(name="doubler", summary="test", tasks=frozenset({"denoise"}))
+
+    def clean(self, observation, /):
+        return CleanResult(observation.motion)
+
+
+def test_params_from_spec_and_spec_round_trip():
+    registry.register("doubler", Doubler)
+    e = registry.create("doubler:gain=2.5,flag=yes,label=b")
+    assert e.params == Doubler.Params(gain=2.5, flag=True, label="b")
+    assert e.spec == "doubler:gain=2.5,flag=True,label=b"
+    assert registry.create(e.spec).params == e.params
+    assert registry.create("doubler").spec == "doubler"
+    with pytest.raises(EngineError, match="true or false"):
+        registry.create("doubler:flag=maybe")
+    with pytest.raises(EngineError, match="doubler"):
+        registry.create("doubler:gain=abc")
+
+
+def test_import_path_specs():
+    e = registry.create("engines.identity:Identity")
+    assert e.info.name == "identity"
+    with pytest.raises(EngineError, match="cannot import"):
+        registry.create("no.such.module:Thing")
+
+
+def test_pipeline_passes_filled_motion_as_fully_observed(walk):
+    seen = []
+
+    class Spy(Doubler):
+        info = EngineInfo(name="spy", summary="records what it sees", tasks=frozenset({"denoise"}))
+
+        def clean(self, observation, /):
+            seen.append(observation.observed.all())
+            return CleanResult(observation.motion, {"x": np.zeros(observation.n_frames)})
+
+    registry.register("spy", Spy)
+    p = registry.create("identity>spy")
+    assert isinstance(p, Pipeline) and p.spec == "identity>spy"
+    observed = np.ones((walk.n_frames, walk.skeleton.n_joints), bool)
+    observed[5:9, 3] = False
+    res = p.clean(Observation(walk, observed))
+    assert seen == [True] and "x" in res.diagnostics
+    with pytest.raises(EngineError, match="two engines"):
+        Pipeline([registry.create("identity")])
+
+
+def test_observation_nan_counts_as_missing(walk):
+    X = walk.channels
+    X[3, 3 + 3 * 7 + 1] = np.nan
+    obs = Observation(walk.with_channels(X))
+    assert not obs.observed[3, 7] and obs.observed.sum() == obs.observed.size - 1
+    assert np.isnan(obs.motion.angles_deg[3, 7]).all()

@@ -1,0 +1,70 @@
+import numpy as np
+import pytest
+
+from workbench import metrics
+from workbench.core import angle_columns
+
+
+def test_zero_error_on_truth(walk):
+    s = metrics.score(walk, walk)
+    assert s["rms_angle_deg"] == 0 and s["mpjpe_cm"] == 0
+    assert "gap_mpjpe_cm" not in s
+
+
+def test_rms_angle_is_wrap_safe_and_per_frame(walk):
+    X = walk.channels
+    cols = angle_columns(walk.skeleton)
+    X[:, cols] += 360.0  # the same angles
+    assert metrics.rms_angle_deg(walk, walk.with_channels(X)) == pytest.approx(0, abs=1e-9)
+    X = walk.channels
+    X[:, cols[0]] += 358.0  # a 2 degree error across the wrap
+    per_frame = metrics.rms_angle_deg_per_frame(walk, walk.with_channels(X))
+    assert np.allclose(per_frame, np.sqrt(4.0 / len(cols)))
+
+
+def test_root_channels_are_not_scored_as_angles(walk):
+    X = walk.channels
+    X[:, 3:6] += 10.0  # root orientation
+    assert metrics.rms_angle_deg(walk, walk.with_channels(X)) == 0
+
+
+def test_mpjpe_is_root_aligned_and_in_cm(walk):
+    X = walk.channels
+    X[:, :3] += 5.0  # moving the whole body is no joint error
+    assert metrics.mpjpe_cm(walk, walk.with_channels(X)) == pytest.approx(0, abs=1e-9)
+    est = walk.with_channels(walk.channels)
+    P = walk.positions.copy()
+    P[:, 5] += [1.0, 0, 0]  # one joint off by one unit
+    err = np.linalg.norm((P - P[:, :1]) - (walk.positions - walk.positions[:, :1]), axis=2)
+    assert err[:, 5].mean() * walk.skeleton.unit_cm == pytest.approx(5.64)
+    del est
+
+
+def test_gap_mpjpe_counts_missing_entries_only(walk):
+    X = walk.channels
+    j = walk.skeleton.index("LeftForeArm")
+    X[:, 3 + 3 * j] += 20.0
+    est = walk.with_channels(X)
+    observed = np.ones((walk.n_frames, walk.skeleton.n_joints), bool)
+    assert np.isnan(metrics.gap_mpjpe_cm(walk, est, observed))
+    observed[10:20, walk.skeleton.index("LeftHand")] = False
+    gap = metrics.gap_mpjpe_cm(walk, est, observed)
+    assert gap == pytest.approx(metrics.joint_position_error_cm(walk, est)[10:20, walk.skeleton.index("LeftHand")].mean())
+    assert gap > 0
+
+
+def test_bone_lengths_and_jitter(walk):
+    stats = metrics.bone_length_stats_cm(walk.positions, walk)
+    assert np.allclose(stats["std"], 0, atol=1e-9)
+    assert np.allclose(stats["mean"], np.linalg.norm(walk.skeleton.offsets[1:], axis=1) * 5.64)
+    rng = np.random.default_rng(0)
+    X = walk.channels
+    X[:, 6:] += rng.normal(size=X[:, 6:].shape)
+    assert metrics.jitter_cm_s3(walk.with_channels(X)) > 3 * metrics.jitter_cm_s3(walk)
+
+
+def test_layout_mismatch_is_an_error(walk, kick):
+    with pytest.raises(ValueError, match="skeleton"):
+        metrics.rms_angle_deg(walk, kick)
+    with pytest.raises(ValueError, match="frame counts"):
+        metrics.mpjpe_cm(walk, walk.slice(0, 10))
