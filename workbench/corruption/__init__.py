@@ -12,7 +12,7 @@ spatial, spatial-ends, outliers (noise) and gaps, block, joints, drop (missing d
 """
 
 from .base import Model, Param, format_number, random_stream
-from .errors import CorruptionError, CorruptionSpecError
+from .errors import CorruptionApplyError, CorruptionSpecError
 from .gaps import Block, Drop, Gaps, Joints
 from .noise import Angular, Bias, Outliers, Sine, Uniform
 from .spatial import END_JOINT_PATTERN, Spatial, SpatialEnds, end_joints
@@ -20,7 +20,7 @@ from .spec import MODELS, Corruption, make_case, models_help, parse_corruption
 
 __all__ = [
     "parse_corruption", "make_case", "Corruption", "MODELS", "models_help",
-    "CorruptionError", "CorruptionSpecError", "Model", "Param", "random_stream", "format_number",
+    "CorruptionApplyError", "CorruptionSpecError", "Model", "Param", "random_stream", "format_number",
     "Angular", "Uniform", "Bias", "Sine", "Outliers", "Spatial", "SpatialEnds", "Gaps", "Block", "Joints", "Drop",
     "end_joints", "END_JOINT_PATTERN",
 ]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .base import Model, Param, Work
-from .errors import CorruptionError
+from .errors import CorruptionApplyError
 
 
 @dataclass(frozen=True)
@@ -68,13 +68,13 @@ class Block(Model):
 
     def first_frame(self, n_frames: int, rng: np.random.Generator) -> int:
         if n_frames < self.n + 2:
-            raise CorruptionError(
+            raise CorruptionApplyError(
                 f"{self} needs a clip of at least {self.n + 2} frames (the block plus one observed frame on "
                 f"each side); this one has {n_frames}")
         if self.start is None:
             return int(rng.integers(1, n_frames - self.n))
         if not 1 <= self.start <= n_frames - self.n - 1:
-            raise CorruptionError(
+            raise CorruptionApplyError(
                 f"{self}: START must leave an observed frame on each side of the block, i.e. lie in "
                 f"1..{n_frames - self.n - 1} for this {n_frames}-frame clip; got {self.start}")
         return self.start
@@ -101,7 +101,7 @@ class Joints(Model):
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
         eligible = self.eligible(work)
         if self.n > eligible.size:
-            raise CorruptionError(
+            raise CorruptionApplyError(
                 f"{self}: this skeleton has only {eligible.size} non-root joints whose angles vary; "
                 f"N must be at most {eligible.size}")
         chosen = rng.choice(eligible, size=self.n, replace=False)

@@ -20,7 +20,7 @@ import numpy as np
 from ..core.kinematics import inverse_kinematics
 from ..core.skeleton import Skeleton
 from .base import Model, Param, Work
-from .errors import CorruptionError
+from .errors import CorruptionApplyError
 
 #: Wrist and ankle joints, matched on the whole name, case-insensitively: a side
 #: (left/right/l/r) and a part (hand/wrist/foot/ankle), either order, optionally joined
@@ -82,7 +82,7 @@ class SpatialEnds(Model):
     def sigmas_cm(self, skeleton: Skeleton) -> np.ndarray:
         ends = end_joints(skeleton)
         if not ends:
-            raise CorruptionError(
+            raise CorruptionApplyError(
                 f"{self.name}: the skeleton has no wrist or ankle joint (names such as LeftHand, RightFoot, "
                 f"lHand, rFoot, Left_Wrist, r_ankle); its joints are {', '.join(skeleton.names)}")
         sigma = np.full(skeleton.n_joints, self.b)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..core.motion import Case, Motion, Observation
 from .base import Model, Work, random_stream
-from .errors import CorruptionError, CorruptionSpecError
+from .errors import CorruptionApplyError, CorruptionSpecError
 from .gaps import Block, Drop, Gaps, Joints
 from .noise import Angular, Bias, Outliers, Sine, Uniform
 from .spatial import Spatial, SpatialEnds
@@ -78,7 +78,7 @@ class Corruption:
 
 def _check_seed(seed: int) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise CorruptionError(f"seed must be a whole number >= 0, got {seed!r}")
+        raise CorruptionApplyError(f"seed must be a whole number >= 0, got {seed!r}")
     return int(seed)
 
 
@@ -87,7 +87,7 @@ def _check_finite(motion: Motion) -> None:
     bad_ang = ~np.isfinite(motion.angles_deg).all(axis=(1, 2))
     bad = np.flatnonzero(bad_root | bad_ang)
     if bad.size:
-        raise CorruptionError(
+        raise CorruptionApplyError(
             f"the clean motion {motion.name!r} has non-finite values (NaN or inf) in {bad.size} frame(s), "
             f"first at frame {bad[0]}; corruption needs a complete clean clip")
 

@@ -1,0 +1,70 @@
+"""Shared machinery for the engines built on PyTorch (CPU build): seeding, thread
+count, converting a module's state to plain arrays and back (so weights are stored by
+:mod:`workbench.weights` as a checksummed ``.npz`` and never unpickled), and a training
+progress bar.
+
+Import this module only inside ``fit``/``clean``/``load_state_arrays`` so that listing
+engines does not import torch.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+from typing import Iterable, Mapping
+
+import numpy as np
+import torch
+
+from workbench.engine import EngineError
+
+#: serialise heavy torch runs across processes on this 2-core machine (see PERFORMANCE.md:
+#: two 2-thread torch processes at once are each ~20x slower)
+TRAIN_LOCK = "/tmp/mocap-workbench-torch.lock"
+
+
+def seed_everything(seed: int) -> torch.Generator:
+    """Seed python, numpy and torch; returns a torch Generator seeded the same way."""
+    random.seed(seed)
+    np.random.seed(seed % 2**32)
+    torch.manual_seed(seed)
+    return torch.Generator().manual_seed(seed)
+
+
+def use_threads(n: int | None = None) -> None:
+    """Use ``n`` torch threads (default: OMP_NUM_THREADS if set, else all cores, max 2)."""
+    if n is None:
+        n = int(os.environ.get("OMP_NUM_THREADS") or min(2, os.cpu_count() or 1))
+    torch.set_num_threads(max(1, n))
+
+
+def module_arrays(module: torch.nn.Module, prefix: str = "") -> dict[str, np.ndarray]:
+    """The module's parameters and buffers as float32 numpy arrays, keyed ``prefix + name``."""
+    return {prefix + k: v.detach().cpu().float().numpy() for k, v in module.state_dict().items()}
+
+
+def load_module_arrays(module: torch.nn.Module, arrays: Mapping[str, np.ndarray], prefix: str = "") -> None:
+    """Load arrays saved by :func:`module_arrays` into ``module``; a clear EngineError if
+    the names or shapes do not match the network built from the manifest's parameters."""
+    state = module.state_dict()
+    wanted = {prefix + k for k in state}
+    have = {k for k in arrays if k.startswith(prefix)}
+    if wanted != have:
+        missing, extra = sorted(wanted - have)[:3], sorted(have - wanted)[:3]
+        raise EngineError(f"weights do not fit this network (missing {missing}, unexpected {extra}); "
+                          "they were saved by another version or with other parameters")
+    new = {}
+    for k, v in state.items():
+        a = np.asarray(arrays[prefix + k])
+        if a.shape != tuple(v.shape):
+            raise EngineError(f"weights do not fit this network: {k} has shape {a.shape}, expected {tuple(v.shape)}")
+        new[k] = torch.from_numpy(a.astype(np.float32)).to(v.dtype)
+    module.load_state_dict(new)
+
+
+def progress(iterable: Iterable, desc: str, total: int | None = None):
+    """A tqdm progress bar on stderr (quiet when not a terminal and in CI)."""
+    from tqdm import tqdm
+
+    return tqdm(iterable, desc=desc, total=total, dynamic_ncols=True, mininterval=1.0,
+                disable=os.environ.get("CI") == "true")
