@@ -1,8 +1,9 @@
 """``workbench``: the command line.
 
-Subcommands: data, engines, corrupt, clean, bench, train (and the app's gui, report,
-screenshots). Every user error (bad file, bad spec, missing data or weights) prints one
-clear line on stderr and exits with status 2; nothing is half-written.
+Subcommands: data, engines, corrupt, clean, bench, train, and the app's gui (also
+``workbench`` with no arguments), report, screenshots. Every user error (bad file, bad
+spec, missing data or weights) prints one clear line on stderr and exits with status 2;
+nothing is half-written.
 """
 
 from __future__ import annotations
@@ -229,6 +230,42 @@ def cmd_train(args) -> int:
     return 0
 
 
+# -- the app (gui, report, screenshots) ---------------------------------------------------
+def cmd_gui(args) -> int:
+    from .app.main import run_gui
+    from .corruption import parse_corruption
+
+    parse_corruption(args.corrupt)  # a bad spec stops here, with its message
+    return run_gui(args.clip, args.corrupt, args.seed, split_engine_specs(args.engine) if args.engine else None)
+
+
+def cmd_report(args) -> int:
+    from .app.report import FORMATS, write_report
+    from .app.take import default_engines
+
+    if Path(args.output).suffix.lower() not in FORMATS:
+        raise UserError(f"the report must be a .png or .pdf file, not {args.output!r}")
+    specs = split_engine_specs(args.engine) if args.engine else default_engines()
+    print(f"wrote {write_report(args.output, args.clip, args.corrupt, args.seed, specs, args.frame)}")
+    return 0
+
+
+def cmd_screenshots(args) -> int:
+    import shutil
+    import subprocess
+
+    from .app.main import has_display, make_screenshots
+
+    specs = split_engine_specs(args.engine) if args.engine else None
+    if not has_display() and shutil.which("xvfb-run"):  # prefer a real (virtual) display
+        cmd = [sys.executable, "-m", "workbench", "screenshots", "--out", args.out]
+        cmd += [a for spec in specs or [] for a in ("--engine", spec)]
+        return subprocess.call(["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", *cmd])
+    for path in make_screenshots(args.out, specs=specs):
+        print(f"wrote {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
@@ -279,6 +316,32 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<engine>)")
     sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
     sp.set_defaults(func=cmd_train)
+
+    from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
+
+    def take_opts(sp):
+        sp.add_argument("clip", nargs="?", default=DEFAULT_CLIP,
+                        help=f"clip id or BVH/AMC file (default {DEFAULT_CLIP})")
+        sp.add_argument("--corrupt", default=DEFAULT_CORRUPTION, metavar="SPEC",
+                        help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})")
+        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default: "
+                        "the registered ones of gaussian, lerp>gaussian, kalman, identity)")
+
+    sp = sub.add_parser("gui", help="open the desktop app (also: workbench with no arguments)")
+    take_opts(sp)
+    sp.set_defaults(func=cmd_gui)
+
+    sp = sub.add_parser("report", help="the app's views and plots as one figure (PNG or PDF), headless")
+    take_opts(sp)
+    sp.add_argument("-o", "--output", required=True, metavar="FILE.png|FILE.pdf")
+    sp.add_argument("--frame", type=int, help="frame shown in 3D (default: the middle)")
+    sp.set_defaults(func=cmd_report)
+
+    sp = sub.add_parser("screenshots", help="regenerate the app's screenshots")
+    sp.add_argument("--out", default="screenshots", metavar="DIR")
+    sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default as for gui)")
+    sp.set_defaults(func=cmd_screenshots)
     return p
 
 
@@ -286,8 +349,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
-        parser.print_help()
-        return 0
+        args = parser.parse_args(["gui"])
     try:
         return args.func(args)
     except _user_errors() as err:

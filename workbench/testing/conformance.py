@@ -133,19 +133,16 @@ def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | None =
         CHECKS[key](engine, name=name, motion=motion, foreign=foreign)
 
 
-def conformance_clips(root=None, frames: int = 150) -> tuple[Motion, Motion]:
-    """Two short clean takes of different skeletons from the data root (a CMU walk and a
-    cmu-daz kick when present)."""
+def conformance_clips(root=None, frames: int = 150) -> tuple[Motion, Motion | None]:
+    """Two short clean takes of different skeleton layouts from the data root: the first
+    training clip (the layout trained engines are fitted on; a CMU take with the team's
+    data) and the first clip of any other layout (a cmu-daz take), or None."""
     from ..data import catalogue
 
-    clips = catalogue(root)
-    by_layout: dict[str, Motion] = {}
-    for clip in clips:
-        if clip.split not in ("train", ""):
-            continue
+    clips = sorted(catalogue(root), key=lambda c: c.split != "train")
+    primary = clips[0].load().slice(0, frames)
+    for clip in clips[1:]:
         m = clip.load()
-        by_layout.setdefault(m.skeleton.signature(), m.slice(0, frames))
-        if len(by_layout) == 2:
-            break
-    motions = list(by_layout.values())
-    return motions[0], (motions[1] if len(motions) > 1 else None)
+        if not m.skeleton.same_layout(primary.skeleton):
+            return primary, m.slice(0, frames)
+    return primary, None

@@ -1,0 +1,74 @@
+"""The app's commands: ``workbench`` (no arguments) opens the GUI, ``workbench gui``
+checks its corruption spec first, ``workbench report`` writes one figure atomically,
+and the screenshots are made."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from workbench import cli
+from workbench.app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def test_no_arguments_opens_the_gui_on_the_default_take(monkeypatch):
+    import workbench.app.main
+
+    calls = []
+    monkeypatch.setattr(workbench.app.main, "run_gui", lambda *args: calls.append(args) or 0)
+    assert cli.main([]) == 0
+    assert calls == [(DEFAULT_CLIP, DEFAULT_CORRUPTION, 0, None)]
+
+
+def test_gui_takes_a_clip_corruption_seed_and_engines(monkeypatch):
+    import workbench.app.main
+
+    calls = []
+    monkeypatch.setattr(workbench.app.main, "run_gui", lambda *args: calls.append(args) or 0)
+    cli.main(["gui", "take.bvh", "--corrupt", "none", "--seed", "3", "--engine", "identity,lerp>gaussian"])
+    assert calls == [("take.bvh", "none", 3, ["identity", "lerp>gaussian"])]
+
+
+def test_gui_stops_on_a_bad_corruption_spec(capsys):
+    assert cli.main(["gui", "--corrupt", "wobble:3"]) == 2
+    err = capsys.readouterr().err
+    assert "workbench gui: error:" in err and "wobble" in err
+
+
+def test_report_writes_a_png_and_a_pdf(tmp_path):
+    for name in ("report.png", "report.pdf"):
+        out = tmp_path / name
+        assert cli.main(["report", DEFAULT_CLIP, "--engine", "identity", "--engine", "test-widths",
+                         "--frame", "30", "-o", str(out)]) == 0
+        head = out.read_bytes()[:8]
+        assert head == PNG if name.endswith(".png") else head.startswith(b"%PDF")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.pdf", "report.png"], "no temporary files left"
+
+
+def test_a_failing_report_leaves_the_old_file_untouched(tmp_path, capsys):
+    out = tmp_path / "report.png"
+    out.write_bytes(b"old")
+    assert cli.main(["report", DEFAULT_CLIP, "--engine", "test-boom", "-o", str(out)]) == 2
+    assert "boom" in capsys.readouterr().err
+    assert out.read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["report.png"]
+    assert cli.main(["report", DEFAULT_CLIP, "-o", str(tmp_path / "report.jpg")]) == 2
+
+
+def test_screenshots_of_every_main_state(tmp_path, tiny_walk):
+    from workbench.io import write_bvh
+
+    take = tmp_path / "walk.bvh"
+    write_bvh(take, tiny_walk)
+    code = ("import sys\nfrom workbench.app.main import make_screenshots\n"
+            "make_screenshots(sys.argv[1], source=sys.argv[2], frame=60, specs=['identity'])\n")
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    run = subprocess.run([sys.executable, "-c", code, str(tmp_path / "shots"), str(take)], env=env,
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    names = sorted(p.name for p in (tmp_path / "shots").iterdir())
+    assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "report.png"]
+    assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
+    assert "Traceback" not in run.stderr

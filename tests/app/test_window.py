@@ -1,0 +1,183 @@
+"""The main window, driven through pytest-qt: its main states checked on the picture
+(pixel probes of joints projected through the camera) and on the Session's state;
+playing, stepping, scrubbing, picking a joint, changing engines (run by the worker),
+and an engine that fails."""
+
+from __future__ import annotations
+
+import numpy as np
+from app_helpers import FRAME, assert_colour, error_colour, rgb, settle
+from PySide6.QtCore import QPoint, Qt
+
+from workbench.app.take import EngineRun
+from workbench.plots.style import CURSOR, TRUTH
+
+
+def panes_image(win) -> np.ndarray:
+    return win.scene.grab_panes()
+
+
+def joint_xy(win, pane: int, joint: int):
+    scene = win.scene.scene
+    return scene.project(pane, scene.panes[pane].points[scene.frame, [joint]])[0]
+
+
+def head(take) -> int:
+    return take.motion.skeleton.index("Head")
+
+
+def test_default_state_shows_noisy_cleaned_and_truth(window, take):
+    s = window.session
+    assert [p.title.split("\n")[0] for p in window.scene.scene.panes] == ["noisy", "cleaned", "ground truth"]
+    assert isinstance(s.runs["identity"], EngineRun) and isinstance(s.runs["test-widths"], EngineRun)
+    img = panes_image(window)
+    j = head(take)
+    assert_colour(img, joint_xy(window, 2, j), TRUTH, what="truth pane Head")
+    err = s.runs["identity"].track.errors_cm[FRAME, j]
+    assert_colour(img, joint_xy(window, 1, j), error_colour(err, take.error_scale_cm()), what="cleaned Head")
+
+
+def test_the_window_grab_shows_the_3d_views(window, take):
+    """What the user sees (the whole window) holds the 3D panes, not a blank widget."""
+    grab = window.grab().toImage()
+    origin = window.scene.mapTo(window, QPoint(0, 0))
+    ratio = window.scene.devicePixelRatioF()
+    x, y = joint_xy(window, 2, head(take)) / ratio
+    colour = grab.pixelColor(origin.x() + int(round(x)), origin.y() + int(round(y)))
+    assert np.abs(np.array([colour.red(), colour.green(), colour.blue()]) - rgb(TRUTH)).max() <= 12
+
+
+def test_compare_mode_shows_every_engine_side_by_side(window, qtbot):
+    window.session.set_compare(True)
+    settle(qtbot, window)
+    titles = [p.title for p in window.scene.scene.panes]
+    assert titles == ["noisy\nangular:0.5+gaps:0.01", "cleaned\nidentity", "cleaned\ntest-widths"]
+    assert len(window.plots.canvases[0].figure.axes[0].get_lines()) >= 3, "an RMS line per engine and the noisy"
+
+
+def test_play_advances_frames_and_redraws(window, qtbot):
+    s = window.session
+    before = panes_image(window).copy()
+    window.controls.take.corruption.setFocus()
+    qtbot.mouseClick(window.scene.surface, Qt.LeftButton, pos=QPoint(5, 5))  # takes the focus from the text
+    qtbot.keyClick(window.focusWidget(), Qt.Key_Space)
+    assert s.playing
+    qtbot.waitUntil(lambda: s.frame > FRAME + 5, timeout=5000)
+    qtbot.keyClick(window.focusWidget(), Qt.Key_Space)
+    assert not s.playing
+    qtbot.wait(30)
+    assert window.transport.slider.value() == s.frame
+    assert np.abs(panes_image(window).astype(int) - before).max() > 50, "the skeletons moved"
+
+
+def test_arrow_keys_step_one_frame(window, qtbot):
+    s = window.session
+    focus = window.focusWidget()
+    assert focus is window.scene, "the 3D view has the keyboard at the start"
+    qtbot.keyClick(focus, Qt.Key_Right)
+    assert s.frame == FRAME + 1
+    qtbot.keyClick(focus, Qt.Key_Left)
+    qtbot.keyClick(focus, Qt.Key_Left)
+    assert s.frame == FRAME - 1
+
+
+def test_scrubbing_moves_the_time_cursor_without_redrawing(window, qtbot):
+    canvas = window.plots.canvases[0]
+    draws = []
+    canvas.mpl_connect("draw_event", draws.append)
+    window.transport.slider.setValue(90)
+    qtbot.wait(50)
+    assert window.session.frame == 90
+    cursor = window.plots.cursors[0]
+    assert cursor.x == 90 / window.session.take.fps
+    assert not draws, "the cursor moves by blitting, not by redrawing the figure"
+    ax = canvas.figure.axes[0]
+    x, _ = ax.transData.transform((cursor.x, 0))
+    _, y = ax.transAxes.transform((0, 0.5))
+    img = np.asarray(canvas.buffer_rgba())
+    row = int(img.shape[0] - y)
+    near = img[row, int(x) - 2:int(x) + 3, :3].astype(int)
+    assert (np.abs(near - rgb(CURSOR)).max(axis=1) < 40).any(), "the red cursor is drawn at frame 90"
+
+
+def test_clicking_a_joint_selects_it_in_the_plots(window, qtbot, take):
+    foot = take.motion.skeleton.index("RightFoot")
+    x, y = joint_xy(window, 1, foot) / window.scene.devicePixelRatioF()
+    qtbot.mouseClick(window.scene.surface, Qt.LeftButton, pos=QPoint(int(round(x)), int(round(y))))
+    assert window.session.selected == (foot,)
+    labels = [line.get_label() for line in window.plots.canvases[0].figure.axes[0].get_lines()]
+    assert "RightFoot · identity" in labels
+    window.plots.setCurrentIndex(2)
+    ticks = [t.get_text() for t in window.plots.canvases[2].figure.axes[0].get_xticklabels()]
+    assert ticks == ["RightLeg\n→ RightFoot"], "the bone plot shows the selected joint's bone"
+
+
+def test_changing_the_engine_recomputes_on_the_worker(window, qtbot):
+    s = window.session
+    with qtbot.waitSignal(s.busyChanged, timeout=5000):
+        s.set_specs(["identity", "test-widths", "lerp"], "lerp")
+    assert s.busy or "lerp" in s.runs, "the run was queued on the worker"
+    settle(qtbot, window)
+    assert isinstance(s.runs["lerp"], EngineRun)
+    assert window.scene.scene.panes[1].title == "cleaned\nlerp"
+    assert window.plots.canvases[0].figure.axes[0].get_legend_handles_labels()[1][-1] == "lerp (RMS)"
+
+
+def test_checking_an_engine_in_the_list_runs_it(window, qtbot):
+    panel = window.controls.engines
+    item = next(panel.list.item(i) for i in range(panel.list.count()) if panel.list.item(i).data(Qt.UserRole) == "lerp")
+    item.setCheckState(Qt.Checked)
+    settle(qtbot, window)
+    assert window.session.specs[-1] == "lerp" and isinstance(window.session.runs["lerp"], EngineRun)
+
+
+def test_the_heatmap_tab_shows_reported_widths_or_says_there_are_none(window, qtbot):
+    s = window.session
+    window.plots.setCurrentIndex(1)
+    s.set_current("test-widths")
+    qtbot.wait(50)
+    fig = window.plots.canvases[1].figure
+    assert fig.axes[0].get_images(), "a heatmap for an engine that reports widths"
+    s.set_current("identity")
+    qtbot.wait(50)
+    texts = [t.get_text() for t in window.plots.canvases[1].figure.axes[0].texts]
+    assert texts == ["this engine reports no filter widths"]
+
+
+def test_an_engine_error_shows_in_the_window_not_on_the_console(window, qtbot, capfd):
+    s = window.session
+    s.set_specs(["test-boom", "test-crash"], "test-boom")
+    settle(qtbot, window)
+    assert "boom: this engine always fails" in s.runs["test-boom"]
+    assert s.runs["test-crash"].startswith("ZeroDivisionError")
+    log = [window.controls.log.item(i).text() for i in range(window.controls.log.count())]
+    assert any("test-boom failed: boom" in line for line in log)
+    assert any("test-crash failed: ZeroDivisionError" in line for line in log)
+    assert "failed" in window.statusBar().currentMessage()
+    assert window.scene.scene.panes[1].note.startswith("failed:")
+    assert "Traceback" not in capfd.readouterr().err
+
+
+def test_a_take_without_ground_truth_says_so(window, qtbot, clean_take):
+    window.session.set_take(clean_take)
+    settle(qtbot, window)
+    panes = window.scene.scene.panes
+    assert panes[-1].points is None and "no ground truth" in panes[-1].note
+    texts = [t.get_text() for t in window.plots.canvases[0].figure.axes[0].texts]
+    assert any("no ground truth" in t for t in texts)
+
+
+def test_opening_a_bad_take_reports_it(window, qtbot):
+    with qtbot.waitSignal(window.session.message, timeout=10000) as blocker:
+        window.session.open("no/such/clip")
+    assert "cannot open no/such/clip" in blocker.args[0]
+    assert window.session.take is not None, "the previous take stays"
+
+
+def test_the_3d_views_are_an_interactor_with_a_display_and_images_without(window):
+    from PySide6.QtGui import QGuiApplication
+    from PySide6.QtWidgets import QLabel
+
+    offscreen = QGuiApplication.platformName() == "offscreen"
+    assert isinstance(window.scene.surface, QLabel) == offscreen
+    assert window.scene.interactive == (not offscreen)

@@ -1,0 +1,238 @@
+"""The control panel: the take (catalogue clip or file, corruption spec, seed), the
+engines (every registered one, checkable, with its parameters; any spec can be added),
+compare mode and follow-root, and the message log. Every control calls a Session setter.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
+                               QLineEdit, QListWidget, QListWidgetItem, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+
+from .. import registry
+from .take import DEFAULT_CORRUPTION, EngineRun
+
+SPEC_ROLE = Qt.UserRole
+MAX_MESSAGES = 100
+
+
+class TakePanel(QGroupBox):
+    """Clip picker (catalogue or file), corruption spec and seed."""
+
+    def __init__(self, session, parent=None) -> None:
+        super().__init__("Take", parent)
+        self.session = session
+        self.clip = QComboBox()
+        self.clip.setEditable(True)
+        self.clip.setInsertPolicy(QComboBox.NoInsert)
+        self.clip.setToolTip("a catalogue clip id, or a BVH/AMC path")
+        self.clip.addItems(self._catalogue())
+        self.clip.activated.connect(lambda _: self.apply())
+        self.clip.lineEdit().returnPressed.connect(self.apply)
+        browse = QPushButton("Open file…")
+        browse.clicked.connect(self.browse)
+        self.corruption = QLineEdit(DEFAULT_CORRUPTION)
+        self.corruption.setToolTip("models joined by '+', e.g. angular:0.5+gaps:0.01; 'none' shows the take as "
+                                   "recorded (no ground truth)")
+        self.corruption.returnPressed.connect(self.apply)
+        self.seed = QSpinBox()
+        self.seed.setRange(0, 2**31 - 1)
+        self.seed.editingFinished.connect(self.apply)
+        apply = QPushButton("Apply")
+        apply.clicked.connect(self.apply)
+        form = QFormLayout(self)
+        form.addRow("clip", self.clip)
+        form.addRow("", browse)
+        form.addRow("corruption", self.corruption)
+        row = QHBoxLayout()
+        row.addWidget(self.seed, 1)
+        row.addWidget(apply)
+        form.addRow("seed", row)
+        session.takeChanged.connect(self.show_take)
+
+    def _catalogue(self) -> list[str]:
+        from ..data import catalogue
+
+        try:
+            return [c.id for c in catalogue()]
+        except Exception as err:  # no data root: files can still be opened
+            self.session.message.emit(f"no clip catalogue: {err}")
+            return []
+
+    def show_take(self) -> None:
+        take = self.session.take
+        self.clip.setCurrentText(take.source)
+        self.corruption.setText(take.corruption)
+        self.seed.setValue(take.seed)
+
+    def browse(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open a take", "", "Motion files (*.bvh *.amc);;All files (*)")
+        if path:
+            self.clip.setCurrentText(path)
+            self.apply()
+
+    def apply(self) -> None:
+        if not self.isVisible():  # focus-out signals while the window is torn down
+            return
+        take = self.session.take
+        source, corruption, seed = self.clip.currentText().strip(), self.corruption.text(), self.seed.value()
+        if take is None or (source, corruption, seed) != (take.source, take.corruption, take.seed):
+            self.session.open(source, corruption, seed)
+
+
+class EnginePanel(QGroupBox):
+    """Every registered engine and every spec in use, checkable; the highlighted one is
+    shown as "cleaned" and its parameters can be edited. Engines are imported only when
+    used (listing them must not import them all): one that fails to load fails its run,
+    with the reason in its tooltip and the messages."""
+
+    def __init__(self, session, parent=None) -> None:
+        super().__init__("Engines", parent)
+        self.session = session
+        self.names = registry.available()
+        self.list = QListWidget()
+        self.list.setMinimumHeight(130)
+        self.list.itemChanged.connect(self._checked)
+        self.list.currentItemChanged.connect(self._highlighted)
+        self.add = QLineEdit()
+        self.add.setPlaceholderText("add a spec, e.g. lerp>gaussian:sigma_ms=80")
+        self.add.returnPressed.connect(self._add)
+        self.params = QFormLayout()
+        self.params_box = QGroupBox("Parameters")
+        self.params_box.setLayout(self.params)
+        self.compare = QCheckBox("Compare checked engines side by side")
+        self.compare.toggled.connect(session.set_compare)
+        self.follow = QCheckBox("Camera follows the root")
+        self.follow.setChecked(session.follow)
+        self.follow.toggled.connect(session.set_follow)
+        layout = QVBoxLayout(self)
+        for w in (self.list, self.add, self.params_box, self.compare, self.follow):
+            layout.addWidget(w)
+        self.edits: list[tuple[str, dict[str, QLineEdit]]] = []
+        self._params_for: str | None = None
+        session.runsChanged.connect(self.refresh)
+        session.viewChanged.connect(self.refresh)
+        self.refresh()
+
+    def _specs(self) -> list[str]:
+        return self.names + [spec for spec in self.session.specs if spec not in self.names]
+
+    def _status(self, spec: str) -> str:
+        run = self.session.runs.get(spec)
+        if spec not in self.session.specs:
+            return ""
+        if run is None:
+            return "running…"
+        return f"{run.seconds:.2f} s" if isinstance(run, EngineRun) else "failed"
+
+    def refresh(self) -> None:
+        s = self.session
+        self.list.blockSignals(True)
+        self.list.clear()
+        for spec in self._specs():
+            status = self._status(spec)
+            item = QListWidgetItem(f"{spec}   ({status})" if status else spec)
+            item.setData(SPEC_ROLE, spec)
+            item.setFlags(Qt.ItemIsSelectable | Qt.ItemIsUserCheckable | Qt.ItemIsEnabled)
+            item.setCheckState(Qt.Checked if spec in s.specs else Qt.Unchecked)
+            run = s.runs.get(spec)
+            item.setToolTip(run if isinstance(run, str) else "")
+            self.list.addItem(item)
+            if spec == s.current:
+                self.list.setCurrentItem(item)
+        self.list.blockSignals(False)
+        self.compare.setChecked(s.compare)
+        self._show_params(s.current)
+
+    def _checked(self, item: QListWidgetItem) -> None:
+        spec = item.data(SPEC_ROLE)
+        specs = [x for x in self.session.specs if x != spec]
+        if item.checkState() == Qt.Checked:
+            specs.append(spec)
+        self.session.set_specs(specs, spec if item.checkState() == Qt.Checked else None)
+
+    def _highlighted(self, item: QListWidgetItem | None, _previous=None) -> None:
+        if item is not None:
+            spec = item.data(SPEC_ROLE)
+            self.session.set_current(spec)
+            self._show_params(spec)
+
+    def _add(self) -> None:
+        spec = self.add.text().strip()
+        if spec:
+            self.add.clear()
+            self.session.set_specs(self.session.specs + [spec], spec)
+
+    # -- parameters -----------------------------------------------------------------
+    def _show_params(self, spec: str) -> None:
+        """A field per parameter of each stage of ``spec``, then an Apply button (kept
+        as typed while ``spec`` stays the one shown)."""
+        if spec == self._params_for:
+            return
+        self._params_for = spec
+        while self.params.rowCount():
+            self.params.removeRow(0)
+        self.edits = []
+        try:
+            engine = registry.create(spec, pretrained=False) if spec else None
+        except Exception as err:  # a bad spec: say so where its parameters would be
+            self.params.addRow(QLabel(f"cannot build {spec}: {err}", wordWrap=True))
+            return
+        if engine is None:
+            return
+        for stage in getattr(engine, "stages", [engine]):
+            fields = {f.name: QLineEdit(str(getattr(stage.params, f.name))) for f in dataclasses.fields(stage.params)}
+            self.edits.append((stage.info.name, fields))
+            if not fields:
+                self.params.addRow(stage.info.name, QLabel("no parameters"))
+            for name, edit in fields.items():
+                edit.returnPressed.connect(self._apply_params)
+                self.params.addRow(f"{stage.info.name}: {name}", edit)
+        if any(fields for _, fields in self.edits):
+            button = QPushButton("Apply parameters")
+            button.clicked.connect(self._apply_params)
+            self.params.addRow(button)
+
+    def _apply_params(self) -> None:
+        """Replace the current spec by one with the edited parameters and run it."""
+        s = self.session
+        try:
+            spec = ">".join(
+                registry.create(name + ":" + ",".join(f"{k}={e.text().strip()}" for k, e in fields.items()),
+                                pretrained=False).spec
+                for name, fields in self.edits)
+        except Exception as err:  # a bad value: tell the user, keep the old spec
+            s.message.emit(f"bad parameters: {err}")
+            return
+        if spec != s.current:
+            s.set_specs([spec if x == s.current else x for x in s.specs] if s.current in s.specs else s.specs + [spec],
+                        spec)
+
+
+class MessageLog(QListWidget):
+    """The newest messages first (engine failures, files that cannot be read...)."""
+
+    def add(self, text: str) -> None:
+        self.insertItem(0, text)
+        self.item(0).setToolTip(text)
+        while self.count() > MAX_MESSAGES:
+            self.takeItem(self.count() - 1)
+
+
+class ControlPanel(QWidget):
+    def __init__(self, session, parent=None) -> None:
+        super().__init__(parent)
+        self.take = TakePanel(session)
+        self.engines = EnginePanel(session)
+        self.log = MessageLog()
+        self.log.setWordWrap(True)
+        session.message.connect(self.log.add)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(6, 6, 6, 6)
+        layout.addWidget(self.take)
+        layout.addWidget(self.engines, 1)
+        layout.addWidget(QLabel("Messages"))
+        layout.addWidget(self.log)
+        self.log.setMaximumHeight(110)

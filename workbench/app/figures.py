@@ -1,0 +1,87 @@
+"""The plot panels of the app and the report, drawn into a given matplotlib Figure or
+SubFigure (no Qt): joint error over time with the gaps, the filter-width heatmaps, the
+bone-length boxes.
+
+Units: errors and lengths in cm, time in seconds, filter widths in frames.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..plots import plot_bone_lengths, plot_errors, plot_filter_widths, plot_note
+from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
+from ..plots.timeline import Series
+from .take import EngineRun, Take, bone_choice
+
+NO_WIDTHS = "this engine reports no filter widths"
+NO_WIDTHS_ANY = "these engines report no filter widths"
+WAITING = "waiting for the engine..."
+
+
+def error_series(take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list[Series]:
+    """Lines of the error plot: the RMS over joints of the noisy take and of each run,
+    then each selected joint's error per run (joint colours, one line style per run)
+    with the noisy error of that joint faint behind it."""
+    names = take.motion.skeleton.names
+    series = [Series("noisy (RMS)", take.noisy.rms_cm, NOISY, 1.2)]
+    series += [Series(f"{r.spec} (RMS)", r.track.rms_cm, engine_colour(i), 2.0) for i, r in enumerate(runs)]
+    for k, j in enumerate(selected):
+        colour = JOINTS[k % len(JOINTS)]
+        series.append(Series(f"{names[j]} noisy", take.noisy.errors_cm[:, j], colour, 0.8, alpha=0.3))
+        for i, r in enumerate(runs):
+            style = ENGINE_STYLES[i % len(ENGINE_STYLES)]
+            series.append(Series(f"{names[j]} · {r.spec}", r.track.errors_cm[:, j], colour, 1.5, style))
+    return series
+
+
+def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list:
+    """Error over time above a strip of the missing joints (grey, joints x time); the
+    selected joints' gaps are shaded in the error plot. Returns the time axes."""
+    ax, strip = fig.subplots(2, 1, sharex=True, height_ratios=[5, 1])
+    missing = take.missing
+    if take.truth is None:
+        plot_note(ax, "no ground truth: errors need a clean take corrupted here")
+        ax.set_axis_on()
+        ax.set_yticks([])
+    else:
+        gaps = missing[:, list(selected)].any(axis=1) if selected else None
+        plot_errors(ax, error_series(take, runs, selected), take.fps, gaps)
+        ax.set_xlabel("")
+    F, J = missing.shape
+    strip.imshow(missing.T, aspect="auto", interpolation="nearest", cmap="Greys", vmin=0, vmax=1.6,
+                 extent=(0, F / take.fps, J, 0))
+    for k, j in enumerate(selected):
+        strip.axhspan(j, j + 1, color=JOINTS[k % len(JOINTS)], alpha=0.35, lw=0)
+    strip.set_yticks([])
+    strip.set_ylabel("gaps", rotation=0, ha="right", va="center", fontsize="small", color=TEXT)
+    strip.set_xlabel("time (s)")
+    ax.tick_params(labelbottom=False)
+    return [ax, strip]
+
+
+def draw_filter_widths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list:
+    """One heatmap per run that reports ``filter_sigma_frames``, on one colour scale, or
+    a note saying none does. Returns the time axes."""
+    maps = [(r.spec, r.filter_sigma_frames) for r in runs if r.filter_sigma_frames is not None]
+    if not maps:
+        plot_note(fig.subplots(), WAITING if not runs else NO_WIDTHS if len(runs) == 1 else NO_WIDTHS_ANY)
+        return []
+    vmax = max(float(np.nanmax(s)) for _, s in maps)
+    axes = np.atleast_1d(fig.subplots(len(maps), 1, sharex=True, squeeze=False)[:, 0]).tolist()
+    names = take.motion.skeleton.names
+    for ax, (spec, sigma) in zip(axes, maps, strict=True):
+        plot_filter_widths(ax, np.asarray(sigma), take.fps, names, f"filter widths · {spec}", vmax, selected)
+    for ax in axes[:-1]:
+        ax.set_xlabel("")
+    return axes
+
+
+def draw_bone_lengths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> None:
+    """Bone-length boxes (noisy, each run; the truth as dots) for the selected joints'
+    bones, else the six longest."""
+    skeleton = take.motion.skeleton
+    sources = [("noisy", take.noisy.motion.positions, NOISY)]
+    sources += [(r.spec, r.track.motion.positions, engine_colour(i)) for i, r in enumerate(runs)]
+    truth = take.truth.positions if take.truth is not None else None
+    plot_bone_lengths(fig.subplots(), sources, skeleton, bone_choice(skeleton, selected), truth)

@@ -1,0 +1,121 @@
+"""Starting the app: the headless set-up, the window on a take, and screenshots of the
+window in its main states.
+
+Without a display (no DISPLAY or WAYLAND_DISPLAY on Linux) Qt uses its offscreen
+platform and VTK its EGL off-screen window, so the app, ``workbench screenshots`` and the
+tests run on CI; the 3D panes then show off-screen-rendered images (see
+:mod:`workbench.app.scene_view`). These settings must be made before Qt or VTK load.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .take import DEFAULT_CLIP, DEFAULT_CORRUPTION, EngineRun, default_engines
+
+WINDOW_SIZE = (1200, 800)
+
+
+def has_display() -> bool:
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def configure_headless() -> None:
+    """With no display: Qt's offscreen platform and VTK's EGL off-screen window."""
+    if not has_display():
+        os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+        os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
+
+
+def application():
+    """The QApplication (made once)."""
+    configure_headless()
+    from PySide6.QtWidgets import QApplication
+
+    return QApplication.instance() or QApplication(["workbench"])
+
+
+def open_window(source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION, seed: int = 0,
+                specs: list[str] | None = None, size: tuple[int, int] = WINDOW_SIZE):
+    """A shown main window loading ``source``, its engines queued to run. The take
+    loads on the worker while the window is being built."""
+    application()
+    from .session import Session
+    from .window import MainWindow
+
+    session = Session()
+    session.set_specs(default_engines() if specs is None else specs)
+    session.open(source, corruption, seed)
+    window = MainWindow(session)
+    session.setParent(window)
+    window.resize(*size)
+    window.show()
+    return window
+
+
+def run_gui(source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION, seed: int = 0,
+            specs: list[str] | None = None) -> int:
+    """Open the window and run the event loop until it closes."""
+    app = application()
+    window = open_window(source, corruption, seed, specs)  # noqa: F841 (kept alive while the loop runs)
+    return app.exec()
+
+
+def settle(window, timeout_ms: int = 60000) -> None:
+    """Process events until the worker is idle and everything it posted is drawn."""
+    from PySide6.QtWidgets import QApplication
+
+    session = window.session
+    while True:
+        QApplication.processEvents()
+        if not session.busy:
+            break
+        session.wait(50)
+    for _ in range(3):
+        QApplication.processEvents()
+
+
+def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION,
+                     frame: int = 150, joint: str = "LeftFoot", specs: list[str] | None = None) -> list[Path]:
+    """The window in its main states, and the report figure, as PNG files in ``out_dir``:
+    default, compare, joint (a selected joint), heatmap (the filter-width tab, of the
+    engine whose widths vary most) and report. ``specs``: the engines (default:
+    :func:`default_engines`)."""
+    from .report import write_report
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    specs = default_engines() if specs is None else specs
+    window = open_window(source, corruption, 0, specs)
+    s = window.session
+    settle(window)
+    s.set_frame(frame)
+    paths = []
+
+    def shoot(name: str) -> None:
+        settle(window)
+        path = out / f"{name}.png"
+        window.grab().save(str(path))
+        paths.append(path)
+
+    shoot("default")
+    s.set_compare(True)
+    shoot("compare")
+    s.set_compare(False)
+    s.select_joint(s.take.motion.skeleton.index(joint))
+    shoot("joint")
+    widths = {spec: np.ptp(r.filter_sigma_frames) for spec, r in s.runs.items()
+              if isinstance(r, EngineRun) and r.filter_sigma_frames is not None}
+    if widths:  # the engine whose widths vary most
+        s.set_current(max(widths, key=widths.get))
+    window.plots.setCurrentIndex(1)
+    shoot("heatmap")
+    window.plots.setCurrentIndex(0)
+    paths.append(write_report(out / "report.png", source, corruption, 0, specs, frame=frame))
+    window.close()
+    return paths

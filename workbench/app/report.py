@@ -1,0 +1,96 @@
+"""``workbench report``: the app's 3D panes and plots rendered headless into one figure
+(no Qt): the panes off-screen at one frame (noisy | each engine with the truth faded in
+| truth), the scores, the error over time, the filter widths and the bone lengths.
+
+Units: as in the app (cm, seconds, frames). The file is written atomically.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..plots import TimeCursor
+from ..plots.style import ERROR_LABEL, error_mappable
+from .figures import draw_bone_lengths, draw_errors, draw_filter_widths
+from .take import EngineRun, Take, open_take, run_engine, scene_panes
+
+PANE_PX = (420, 460)
+DPI = 110
+FORMATS = (".png", ".pdf")
+
+
+def render_panes(take: Take, runs: list[EngineRun], frame: int) -> np.ndarray:
+    """(H, W, 3) uint8 off-screen image of the panes at ``frame``."""
+    from ..render import SkeletonScene, new_plotter
+    from .main import configure_headless
+
+    configure_headless()
+    panes = scene_panes(take, [r.spec for r in runs], {r.spec: r for r in runs}, compare=False)
+    plotter = new_plotter(len(panes), (PANE_PX[0] * len(panes), PANE_PX[1]))
+    try:
+        scene = SkeletonScene(plotter, panes, take.motion.skeleton, take.root, take.error_scale_cm())
+        scene.set_frame(frame)
+        return np.asarray(plotter.screenshot(return_img=True))[..., :3].copy()
+    finally:
+        plotter.close()
+
+
+def scores_text(take: Take, runs: list[EngineRun]) -> str:
+    """One line per engine: its headline scores (needs a truth)."""
+    from ..metrics import score
+
+    lines = []
+    for r in runs:
+        sc = score(take.truth, r.track.motion, take.observation.observed)
+        gap = f", in gaps {sc['gap_mpjpe_cm']:.2f} cm" if "gap_mpjpe_cm" in sc else ""
+        lines.append(f"{r.spec}: joint error {sc['mpjpe_cm']:.2f} cm{gap}, angles {sc['rms_angle_deg']:.2f}° RMS, "
+                     f"{r.seconds:.2f} s")
+    return "\n".join(lines)
+
+
+def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple[int, ...] = ()):
+    """The report as a matplotlib Figure (Agg, no window)."""
+    from matplotlib.figure import Figure
+
+    image = render_panes(take, runs, frame)
+    width = max(12.0, image.shape[1] / DPI)
+    views_h = width * image.shape[0] / image.shape[1] + 0.2 * (len(runs) + 1)  # the image, the scores
+    fig = Figure(figsize=(width, views_h + 8.5), dpi=DPI, layout="constrained")
+    fig.suptitle(f"{take.source} · corruption {take.corruption} · seed {take.seed} · frame {frame} "
+                 f"({frame / take.fps:.2f} s)", fontsize="large")
+    views, errors, bottom = fig.subfigures(3, 1, height_ratios=[views_h, 4.5, 4.0])
+    ax = views.subplots()
+    ax.imshow(image, interpolation="nearest")
+    ax.set_axis_off()
+    views.colorbar(error_mappable(take.error_scale_cm()), ax=ax, location="right", shrink=0.6, pad=0.005,
+                   aspect=15, label=ERROR_LABEL)
+    if take.truth is not None and runs:
+        ax.set_title(scores_text(take, runs), fontsize="medium", loc="left")
+    axes = draw_errors(errors, take, runs, selected)
+    widths, bones = bottom.subfigures(1, 2, width_ratios=[1.1, 1.0])
+    axes += draw_filter_widths(widths, take, runs, selected)
+    draw_bone_lengths(bones, take, runs, selected)
+    TimeCursor(axes, take.fps, animated=False).move(frame, blit=False)
+    return fig
+
+
+def write_report(path: str | Path, source: str, corruption: str, seed: int, specs: list[str],
+                 frame: int | None = None) -> Path:
+    """Load and corrupt ``source``, run the engines, write the report (PNG or PDF by
+    suffix) atomically. ``frame`` defaults to the middle of the take. Raises what the
+    engines raise."""
+    from ..io.atomic import atomic_path
+
+    path = Path(path)
+    if path.suffix.lower() not in FORMATS:
+        raise ValueError(f"the report must be a .png or .pdf file, not {path.name!r}")
+    take = open_take(source, corruption, seed)
+    runs = [run_engine(spec, take) for spec in specs]
+    frame = take.n_frames // 2 if frame is None else min(max(frame, 0), take.n_frames - 1)
+    fig = report_figure(take, runs, frame)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=path.suffix[1:].lower())
+        tmp.chmod(0o644)  # the temporary file was private
+    return path

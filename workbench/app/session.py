@@ -1,0 +1,256 @@
+"""The app's one evented state, which every view subscribes to.
+
+A :class:`Session` holds the take (clip, corruption, seed), the engine specs and their
+runs, the engine shown as "cleaned", compare mode, follow-root, the frame, playing and
+speed, and the selected joints. Views call its setters and redraw on its signals; no
+view talks to another. Loading a take and running engines happen on a worker thread
+(a one-thread QThreadPool, so engines never compete for the two cores with each other):
+the window never waits for them, and a failure (EngineError or any other exception)
+becomes the run's error text and a ``message``, never a traceback.
+
+Units: frames (the take's fps), playback speed as a multiple of real time.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
+
+from .take import DEFAULT_CORRUPTION, EngineRun, Take, describe, open_take, run_engine
+
+
+TICK_MS = 15
+
+
+class _Signals(QObject):
+    done = Signal(object)
+    failed = Signal(str)
+
+
+class _Job(QRunnable):
+    """Runs ``fn()`` on a pool thread and posts its value or its error text back;
+    skips ``fn`` when ``stale()`` says its result would be dropped anyway."""
+
+    def __init__(self, fn: Callable[[], object], stale: Callable[[], bool]) -> None:
+        super().__init__()
+        self.fn, self.stale, self.signals = fn, stale, _Signals()
+
+    def run(self) -> None:
+        if self.stale():
+            self.signals.failed.emit("")
+            return
+        try:
+            value = self.fn()
+        except Exception as err:  # shown in the window, never raised on the console
+            self.signals.failed.emit(describe(err))
+        else:
+            self.signals.done.emit(value)
+
+
+class Session(QObject):
+    takeChanged = Signal()
+    runsChanged = Signal()  # a run arrived, failed, or the engine list changed
+    viewChanged = Signal()  # the shown engine, compare mode or follow-root changed
+    frameChanged = Signal(int)
+    playingChanged = Signal(bool)
+    selectionChanged = Signal()
+    busyChanged = Signal(str)  # what the worker is doing, "" when idle
+    message = Signal(str)
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.take: Take | None = None
+        self.specs: list[str] = []
+        self.runs: dict[str, EngineRun | str] = {}
+        self.current = ""
+        self.compare = False
+        self.follow = True
+        self.frame = 0
+        self.playing = False
+        self.speed = 1.0
+        self.selected: tuple[int, ...] = ()
+        self._pool = QThreadPool(self)
+        self._pool.setMaxThreadCount(1)
+        self._jobs: dict[_Job, str] = {}
+        self._generation = 0  # counts takes shown: runs for an older one are dropped
+        self._opening = 0  # counts open requests: only the latest is shown
+        self._timer = QTimer(self)
+        self._timer.setInterval(TICK_MS)
+        self._timer.timeout.connect(self._tick)
+        self._clock = (0.0, 0)  # (time, frame) playback started from
+
+    # -- the worker -----------------------------------------------------------------
+    def _submit(self, what: str, fn: Callable[[], object], done: Callable[[object], None],
+                failed: Callable[[str], None], wanted: Callable[[], bool]) -> None:
+        """Run ``fn`` on the worker, then ``done(value)`` or ``failed(text)`` here, unless
+        ``wanted()`` has turned False meanwhile (a newer take or request)."""
+        job = _Job(fn, lambda: not wanted())
+
+        def finish(handler, value) -> None:
+            del self._jobs[job]
+            self.busyChanged.emit(self._busy_text())
+            if wanted():
+                handler(value)
+
+        job.signals.done.connect(lambda value: finish(done, value))
+        job.signals.failed.connect(lambda text: finish(failed, text))
+        self._jobs[job] = what
+        self.busyChanged.emit(self._busy_text())
+        self._pool.start(job)
+
+    def _busy_text(self) -> str:
+        whats = list(self._jobs.values())
+        return "" if not whats else whats[0] + (f" (+{len(whats) - 1} queued)" if len(whats) > 1 else "")
+
+    @property
+    def busy(self) -> bool:
+        return bool(self._jobs)
+
+    def wait(self, msecs: int = 30000) -> bool:
+        """Block until the worker is idle (for scripts and tests)."""
+        return self._pool.waitForDone(msecs)
+
+    def shutdown(self) -> None:
+        """Stop playing and wait for the worker (before closing); queued jobs become
+        stale, so they end at once, and only the running one is waited for."""
+        self.set_playing(False)
+        self._generation += 1
+        self._opening += 1
+        self._pool.waitForDone()
+
+    # -- the take -------------------------------------------------------------------
+    def open(self, source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) -> None:
+        """Load a clip id or file and corrupt it, on the worker (the latest request wins)."""
+        self._opening += 1
+        request = self._opening
+        self._submit(f"loading {source}", lambda: open_take(source, corruption, seed), self.set_take,
+                     lambda text: self.message.emit(f"cannot open {source}: {text}"),
+                     lambda: request == self._opening)
+
+    def set_take(self, take: Take) -> None:
+        """Show ``take`` and run every engine on it."""
+        self._generation += 1
+        self.set_playing(False)
+        self.take, self.runs, self.frame = take, {}, 0
+        self.selected = tuple(j for j in self.selected if j < take.motion.skeleton.n_joints)
+        self.takeChanged.emit()
+        self.frameChanged.emit(0)
+        self._run(self.specs)
+
+    # -- engines --------------------------------------------------------------------
+    def set_specs(self, specs: list[str], current: str | None = None) -> None:
+        """The engine list; runs the new ones. ``current`` is shown as "cleaned" (the
+        first spec when not given or not in the list)."""
+        specs = list(dict.fromkeys(s.strip() for s in specs if s.strip()))
+        new = [s for s in specs if s not in self.runs]
+        self.specs = specs
+        self.runs = {s: r for s, r in self.runs.items() if s in specs}
+        self.current = current if current in specs else (self.current if self.current in specs else
+                                                          (specs[0] if specs else ""))
+        self.runsChanged.emit()
+        self.viewChanged.emit()
+        self._run(new)
+
+    def _run(self, specs: list[str]) -> None:
+        take = self.take
+        if take is None:
+            return
+        generation = self._generation
+        for spec in sorted(specs, key=lambda s: s != self.current):
+            self._submit(f"cleaning with {spec}", lambda spec=spec: run_engine(spec, take),
+                         lambda run: self._arrived(run.spec, run),
+                         lambda text, spec=spec: self._arrived(spec, text),
+                         lambda: generation == self._generation)
+
+    def _arrived(self, spec: str, run: EngineRun | str) -> None:
+        if spec not in self.specs:
+            return
+        self.runs[spec] = run
+        if isinstance(run, str):
+            self.message.emit(f"engine {spec} failed: {run}")
+        self.runsChanged.emit()
+
+    @property
+    def shown(self) -> list[str]:
+        """The engines in the 3D views and plots: all of them when comparing, else the
+        current one."""
+        return list(self.specs) if self.compare else [self.current] if self.current else []
+
+    def shown_runs(self) -> list[EngineRun]:
+        """The shown engines' finished runs."""
+        return [r for s in self.shown if isinstance(r := self.runs.get(s), EngineRun)]
+
+    def set_current(self, spec: str) -> None:
+        if spec in self.specs and spec != self.current:
+            self.current = spec
+            self.viewChanged.emit()
+
+    def set_compare(self, on: bool) -> None:
+        if bool(on) != self.compare:
+            self.compare = bool(on)
+            self.viewChanged.emit()
+
+    def set_follow(self, on: bool) -> None:
+        if bool(on) != self.follow:
+            self.follow = bool(on)
+            self.viewChanged.emit()
+
+    # -- time -----------------------------------------------------------------------
+    @property
+    def n_frames(self) -> int:
+        return self.take.n_frames if self.take else 0
+
+    def set_frame(self, frame: int) -> None:
+        """Show ``frame`` (clamped); playback goes on from there."""
+        frame = min(max(int(frame), 0), max(self.n_frames - 1, 0))
+        self._clock = (time.perf_counter(), frame)
+        self._show(frame)
+
+    def _show(self, frame: int) -> None:
+        if frame != self.frame:
+            self.frame = frame
+            self.frameChanged.emit(frame)
+
+    def step(self, n: int) -> None:
+        """Pause and move ``n`` frames."""
+        self.set_playing(False)
+        self.set_frame(self.frame + n)
+
+    def set_playing(self, on: bool) -> None:
+        on = bool(on) and self.n_frames > 1
+        if on == self.playing:
+            return
+        self.playing = on
+        if on:
+            self._clock = (time.perf_counter(), self.frame)
+            self._timer.start()
+        else:
+            self._timer.stop()
+        self.playingChanged.emit(on)
+
+    def toggle_playing(self) -> None:
+        self.set_playing(not self.playing)
+
+    def set_speed(self, speed: float) -> None:
+        self._clock = (time.perf_counter(), self.frame)
+        self.speed = float(speed)
+
+    def _tick(self) -> None:
+        t0, f0 = self._clock
+        elapsed = int((time.perf_counter() - t0) * self.take.fps * self.speed)
+        self._show((f0 + elapsed) % self.n_frames)
+
+    # -- joints ---------------------------------------------------------------------
+    def select_joint(self, joint: int | None, add: bool = False) -> None:
+        """Select ``joint`` (None clears); ``add`` toggles it in the selection instead."""
+        if joint is None:
+            selected: tuple[int, ...] = ()
+        elif add:
+            selected = tuple(j for j in self.selected if j != joint) + (() if joint in self.selected else (joint,))
+        else:
+            selected = (joint,)
+        if selected != self.selected:
+            self.selected = selected
+            self.selectionChanged.emit()

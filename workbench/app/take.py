@@ -1,0 +1,251 @@
+"""A take ready to compare, and engine runs on it: the arrays every view draws (no Qt;
+the Session, the report and the tests share it).
+
+Units: positions in the take's file unit (``skeleton.unit_cm`` cm each); errors in cm,
+root-aligned (:func:`workbench.metrics.joint_position_error_cm`); time in frames at the
+motion's fps.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..core.motion import Motion, Observation
+from ..render.scene import skeleton_points
+
+DEFAULT_CLIP = "cmu/walk/35_31"
+DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
+DEFAULT_ENGINES = ("gaussian", "lerp>gaussian", "kalman", "identity")
+MOTION_SUFFIXES = (".bvh", ".amc")
+
+
+def describe(err: BaseException) -> str:
+    """One line for the user: a user error's message, else the exception's type and
+    message."""
+    from ..corruption import CorruptionSpecError
+    from ..data import DataNotFoundError
+    from ..engine import EngineError
+    from ..io import MotionFileError
+
+    if isinstance(err, KeyError) and err.args:
+        return str(err.args[0])
+    if isinstance(err, (EngineError, CorruptionSpecError, MotionFileError, DataNotFoundError)):
+        return str(err)
+    return f"{type(err).__name__}: {err}"
+
+
+def loadable(spec: str) -> bool:
+    """True when every stage of an engine spec names an engine that imports."""
+    from .. import registry
+    from ..engine import EngineError
+
+    try:
+        for stage in spec.split(">"):
+            registry.get(stage.split(":")[0].strip())
+    except EngineError:
+        return False
+    return True
+
+
+def default_engines() -> list[str]:
+    """The default engines that are registered and load, small ones first."""
+    return [spec for spec in DEFAULT_ENGINES if loadable(spec)]
+
+
+def load_motion(source: str) -> Motion:
+    """A catalogue clip id (``cmu/walk/35_31``, T-pose frame dropped) or a BVH/AMC path."""
+    path = Path(source).expanduser()
+    if path.suffix.lower() in MOTION_SUFFIXES or path.exists():
+        from ..io import read_motion
+
+        return read_motion(path).replace(name=path.stem)
+    from ..data import find_clip
+
+    return find_clip(source).load()
+
+
+def sidecar_mask(source: str, motion: Motion) -> np.ndarray | None:
+    """The observed mask (F, J) written beside a corrupted BVH by ``workbench corrupt``."""
+    mask = Path(str(source) + ".mask.json")
+    if not mask.exists():
+        return None
+    from ..io.mask import read_mask
+
+    return read_mask(mask, motion.skeleton, motion.n_frames)
+
+
+@dataclass(frozen=True)
+class Track:
+    """One skeleton to draw and score: its motion, points (F, J + E, 3) in file units and
+    joint errors (F, J) in cm against the truth (None without a truth)."""
+
+    motion: Motion
+    points: np.ndarray
+    errors_cm: np.ndarray | None
+
+    @classmethod
+    def of(cls, motion: Motion, truth: Motion | None) -> Track:
+        from ..metrics import joint_position_error_cm
+
+        errors = None if truth is None else joint_position_error_cm(truth, motion)
+        return cls(motion, skeleton_points(motion), errors)
+
+    @property
+    def rms_cm(self) -> np.ndarray:
+        """(F,) root-mean-square joint error per frame, cm."""
+        return np.sqrt(np.mean(self.errors_cm**2, axis=1))
+
+
+def bridged(observation: Observation) -> Motion:
+    """The observed motion with its gaps bridged linearly, to draw it (missing joints are
+    drawn grey where they would be)."""
+    from ..core.channels import interpolate_gaps, unwrap_deg
+    from ..core.motion import channel_mask
+
+    mask = channel_mask(observation.observed)
+    X = observation.motion.channels
+    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:])
+    return observation.motion.with_channels(interpolate_gaps(X, mask))
+
+
+@dataclass(frozen=True)
+class Take:
+    """What the user compares engines on. ``truth`` is None for a take shown as recorded
+    (corruption ``none``); ``noisy`` is the observation drawn with its gaps bridged."""
+
+    source: str
+    corruption: str
+    seed: int
+    observation: Observation
+    truth: Motion | None
+    noisy: Track
+    truth_track: Track | None
+
+    @property
+    def motion(self) -> Motion:
+        return self.truth if self.truth is not None else self.observation.motion
+
+    @property
+    def n_frames(self) -> int:
+        return self.observation.n_frames
+
+    @property
+    def fps(self) -> float:
+        return self.observation.motion.fps
+
+    @property
+    def missing(self) -> np.ndarray:
+        """(F, J) True where a joint is missing from the observation."""
+        return ~self.observation.observed
+
+    @property
+    def root(self) -> np.ndarray:
+        """(F, 3) the root trajectory the camera follows (truth's when known)."""
+        return (self.truth_track or self.noisy).points[:, 0]
+
+    def error_scale_cm(self) -> tuple[float, float]:
+        """(0, hi): the joint-error colour scale, hi the noisy errors' 95th percentile
+        rounded up to a whole number of cm (5 cm without a truth)."""
+        if self.noisy.errors_cm is None:
+            return 0.0, 5.0
+        return 0.0, float(max(1.0, np.ceil(np.percentile(self.noisy.errors_cm, 95))))
+
+
+def make_take(motion: Motion, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, source: str = "",
+              observed: np.ndarray | None = None) -> Take:
+    """Corrupt a clean ``motion`` with ``corruption`` and ``seed``; with corruption
+    ``none`` it is the observation itself (``observed`` mask (F, J) if known), no truth."""
+    from ..corruption import make_case, parse_corruption
+
+    spec = parse_corruption(corruption)
+    if spec:
+        case = make_case(motion, spec, seed)
+        truth, observation = motion, case.observation
+    else:
+        truth, observation = None, Observation(motion, observed)
+    truth_track = None if truth is None else Track.of(truth, None)
+    return Take(source or motion.name, str(spec), int(seed), observation, truth,
+                Track.of(bridged(observation), truth), truth_track)
+
+
+def open_take(source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) -> Take:
+    """Load ``source`` (clip id or file) and make its take; a file shown as recorded
+    keeps the gaps its mask sidecar lists."""
+    from ..corruption import parse_corruption
+
+    motion = load_motion(source)
+    observed = None if parse_corruption(corruption) else sidecar_mask(source, motion)
+    return make_take(motion, corruption, seed, source, observed)
+
+
+@dataclass(frozen=True)
+class EngineRun:
+    """One engine's result on a take: the cleaned track, its diagnostics (arrays with the
+    frame axis first) and the time it took (s)."""
+
+    spec: str
+    track: Track
+    diagnostics: Mapping[str, np.ndarray] = field(default_factory=dict)
+    seconds: float = 0.0
+
+    @property
+    def filter_sigma_frames(self) -> np.ndarray | None:
+        """(F, C) the filter widths the engine chose, in frames, if it reports them."""
+        return self.diagnostics.get("filter_sigma_frames")
+
+
+def run_engine(spec: str, take: Take) -> EngineRun:
+    """Create the engine ``spec`` and clean the take's observation (raises what the
+    engine raises)."""
+    from .. import registry
+
+    t0 = time.perf_counter()
+    engine = registry.create(spec)
+    result = engine.clean(take.observation)
+    seconds = time.perf_counter() - t0
+    return EngineRun(spec, Track.of(result.motion, take.truth), dict(result.diagnostics), seconds)
+
+
+def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[int]:
+    """Child joints of the bones to box-plot: those ending at the selected joints, else
+    the ``n`` longest bones of the rest pose."""
+    chosen = [j for j in selected if skeleton.parents[j] >= 0][:n]
+    if chosen:
+        return chosen
+    lengths = np.linalg.norm(skeleton.offsets, axis=1)
+    lengths[0] = -1
+    return sorted(np.argsort(-lengths)[:n].tolist())
+
+
+NO_TRUTH = "no ground truth:\nthe take is shown as recorded\n(corruption none)"
+
+
+def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str], compare: bool) -> list:
+    """The 3D panes: noisy, one per engine in ``specs`` (its run, "running..." while it
+    has none, or its error text) with the truth faded in, and the truth unless
+    comparing."""
+    import textwrap
+
+    from ..plots.style import TRUTH
+    from ..render import Pane
+
+    ghost = take.truth_track.points if take.truth_track else None
+    noisy_title = f"noisy\n{take.corruption}" if take.truth is not None else "noisy\nas recorded"
+    panes = [Pane(noisy_title, take.noisy.points, take.noisy.errors_cm, take.missing)]
+    for spec in specs:
+        run = runs.get(spec)
+        title = f"cleaned\n{spec}"
+        if isinstance(run, EngineRun):
+            panes.append(Pane(title, run.track.points, run.track.errors_cm, ghost=ghost))
+        else:
+            note = "running..." if run is None else "failed:\n" + textwrap.fill(run, 34)
+            panes.append(Pane(title, ghost=ghost, note=note))
+    if not compare:
+        panes.append(Pane("ground truth", note=NO_TRUTH) if ghost is None
+                     else Pane("ground truth", ghost, colour=TRUTH))
+    return panes

@@ -1,0 +1,50 @@
+"""The filter widths a filter-predicting engine chose: a heatmap of channels x time.
+
+Units: widths (the Gaussian kernel's standard deviation) in frames; time in seconds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+LABEL_PX = 11  # vertical room one row label needs
+
+
+def channel_groups(names, n_channels: int) -> list[tuple[str, int, int]]:
+    """(label, first row, stop row) of each joint's channels when the matrix is the
+    channel layout (root position, then three angles per joint), else one group."""
+    if n_channels != 3 + 3 * len(names):
+        return [("channels", 0, n_channels)]
+    return [("root position", 0, 3)] + [(name, 3 + 3 * j, 6 + 3 * j) for j, name in enumerate(names)]
+
+
+def label_rows(n: int, first: set[int], room: float) -> list[int]:
+    """Rows to label out of ``n``: those in ``first``, then every other row that keeps
+    about ``n / room`` rows away from the labelled ones."""
+    gap = max(1.0, n / max(room, 1.0))
+    keep = sorted(first)
+    for i in range(n):
+        if all(abs(i - k) >= gap for k in keep):
+            keep.append(i)
+    return sorted(keep)
+
+
+def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title: str = "",
+                       vmax: float | None = None, highlight=()) -> None:
+    """Heatmap of ``sigma_frames`` (F, C) over time (s) with a colour bar; rows labelled
+    by joint when C matches the channel layout of the joints ``names``; the rows of the
+    joints in ``highlight`` (indices) are labelled in bold."""
+    F, C = sigma_frames.shape
+    im = ax.imshow(sigma_frames.T, aspect="auto", interpolation="nearest", cmap="viridis",
+                   extent=(0, F / fps, C, 0), vmin=0, vmax=vmax or max(float(np.nanmax(sigma_frames)), 1e-6))
+    ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04).set_label("σ (frames)")
+    groups = channel_groups(names, C)
+    bold = {j + 1 for j in highlight} if len(groups) > 1 else set()  # group i is joint i - 1
+    keep = label_rows(len(groups), bold, ax.get_window_extent().height / LABEL_PX)
+    ax.set_yticks([(groups[i][1] + groups[i][2]) / 2 for i in keep], [groups[i][0] for i in keep],
+                  fontsize="x-small")
+    for tick, i in zip(ax.get_yticklabels(), keep, strict=True):
+        tick.set_fontweight("bold" if i in bold else "normal")
+    ax.set_xlabel("time (s)")
+    if title:
+        ax.set_title(title, loc="left", fontsize="medium")
