@@ -1,0 +1,194 @@
+"""Numerics shared by ``kalman`` and ``kalman-learned``: the constant-velocity smoother
+of a bank of channels and the estimator of its noise variances.
+
+The model, per channel, in frames (``dt = 1``)::
+
+    state       s_t = (x_t, v_t),   v_t = x_t - x_{t-1}
+    dynamics    s_{t+1} = [[1, 1], [0, 1]] s_t + (1, 1) w_t,   w_t ~ N(0, q)
+    measurement y_t = x_t + e_t,   e_t ~ N(0, r),   skipped where y_t is missing
+
+i.e. the velocity takes a random step ``w_t`` every frame, so the second difference
+``x_{t+1} - 2 x_t + x_{t-1}`` of the true signal is white with variance ``q``. Its
+Rauch-Tung-Striebel smoothed mean is the minimiser of the posterior's negative log
+
+    sum_observed (y_t - x_t)^2 / r + sum_t (x_{t+1} - 2 x_t + x_{t-1})^2 / q
+
+a symmetric positive-definite pentadiagonal system in x (the initial state has a flat,
+improper prior: it is fixed by the data, as in a diffusely initialised filter).
+:func:`cv_smooth` solves it exactly for all channels at once, which gives the RTS
+means to rounding (tests compare it with the forward-filter/backward-smoother
+recursion) without a Python loop over frames:
+
+* channels observed at every frame: ``(I + lambda D2'D2) x = y`` with ``lambda = r/q``.
+  ``D2'D2 = L^2 - u u' - w w'`` where ``L`` is the free-ends (Neumann) Laplacian, which
+  the orthonormal DCT-II diagonalises, and ``u = e_0 - e_1``, ``w = e_{F-1} - e_{F-2}``;
+  so x is one DCT, a per-frequency gain ``1 / (1 + lambda mu_k^2)``, a rank-2
+  Woodbury correction and one inverse DCT;
+* channels with gaps: one banded Cholesky solve (LAPACK ``pbsv``) of all of them
+  stacked one after another (uncoupled).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.fft as sfft
+from scipy.linalg import solveh_banded
+
+#: smallest measurement variance (channel units squared): data are trusted to ~1e-5
+R_FLOOR = 1e-10
+#: candidate smoothing ratios lambda = r / q for the risk minimisation (log grid, x1.78)
+LAMBDA_GRID = np.logspace(-2.0, 8.0, 41)
+_MAD_TO_STD = 1.482602218505602
+
+
+def cv_smooth(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """RTS-smoothed positions (F, D) of the constant-velocity model above, channel by
+    channel. ``Y`` (F, D) measurements (anything where missing), ``observed`` (F, D),
+    ``q`` and ``r`` (D,) process and measurement variances. A channel with fewer than
+    two observations is returned constant (its observed value, or 0)."""
+    Y = np.asarray(Y, float)
+    F, D = Y.shape
+    observed = np.asarray(observed, bool)
+    q = np.broadcast_to(np.asarray(q, float), (D,))
+    r = np.broadcast_to(np.asarray(r, float), (D,))
+    n_obs = observed.sum(axis=0)
+    out = np.empty((F, D))
+    few = np.flatnonzero(n_obs < 2)
+    if few.size:
+        out[:, few] = np.where(observed[:, few], Y[:, few], 0.0).sum(axis=0)
+    complete = n_obs == F
+    full = np.flatnonzero(complete & (n_obs >= 2)) if F >= 4 else np.zeros(0, int)
+    gappy = np.setdiff1d(np.flatnonzero(n_obs >= 2), full)
+    if full.size:
+        out[:, full] = _smooth_complete(Y[:, full], r[full] / q[full])
+    if gappy.size:
+        out[:, gappy] = _smooth_banded(Y[:, gappy], observed[:, gappy], q[gappy], r[gappy])
+    return out
+
+
+def _smooth_complete(Y: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Exact solution of ``(I + lam D2'D2) x = y`` per column (F >= 4) by DCT + Woodbury.
+
+    For speed the problem is solved on ``F' = F + p`` frames when that is a fast DCT
+    length and ``p <= 3``: the ``p`` extra frames are unobserved, so they only continue
+    the solution linearly and leave it unchanged on the first F frames; removing their
+    data term is another rank-p correction.
+    """
+    F, D = Y.shape
+    n = sfft.next_fast_len(F)
+    if n - F > 3:
+        n = F
+    m = 2 + n - F
+    mu = 2.0 - 2.0 * np.cos(np.pi * np.arange(n) / n)        # eigenvalues of the Laplacian L
+    h = 1.0 / (1.0 + (mu ** 2)[:, None] * lam[None, :])      # (n, D) gains of A^-1 = (I + lam L^2)^-1
+    # M = A - V S V':  V = [u, w, e_F, .., e_{n-1}],  S = diag(lam, lam, 1, .., 1)
+    V = np.zeros((n, m))
+    V[0, 0], V[1, 0], V[-1, 1], V[-2, 1] = 1.0, -1.0, 1.0, -1.0
+    V[np.arange(F, n), np.arange(2, m)] = 1.0
+    Cv = sfft.dct(V, type=2, norm="ortho", axis=0)           # (n, m)
+    Yp = Y if n == F else np.concatenate([Y, np.zeros((n - F, D))])
+    hY = h * sfft.dct(Yp, type=2, norm="ortho", axis=0)
+    # Woodbury: M^-1 y = A^-1 y + A^-1 V (S^-1 - V'A^-1 V)^-1 V'A^-1 y
+    i, j = np.triu_indices(m)
+    g = (Cv[:, i] * Cv[:, j]).T @ h                          # (pairs, D)
+    G = np.empty((D, m, m))
+    G[:, i, j] = g.T
+    G[:, j, i] = g.T
+    G = -G
+    sinv = np.ones((D, m))
+    sinv[:, :2] = (1.0 / lam)[:, None]
+    G[:, np.arange(m), np.arange(m)] += sinv
+    t = (Cv.T @ hY).T                                        # (D, m)
+    c = np.linalg.solve(G, t[:, :, None])[:, :, 0]           # (D, m)
+    hY += h * (Cv @ c.T)
+    return sfft.idct(hY, type=2, norm="ortho", axis=0)[:F]
+
+
+def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky."""
+    F, D = Y.shape
+    # lower band of D2'D2 (D2: second-difference operator), then scaled per channel
+    pattern = np.zeros((3, F))
+    if F >= 3:
+        pattern[0, :-2] += 1.0
+        pattern[0, 1:-1] += 4.0
+        pattern[0, 2:] += 1.0
+        pattern[1, :-2] -= 2.0
+        pattern[1, 1:-1] -= 2.0
+        pattern[2, :-2] += 1.0
+    ir = 1.0 / r
+    ab = pattern[:, None, :] * (1.0 / q)[None, :, None]      # (3, D, F)
+    ab[0] += observed.T * ir[:, None]
+    b = np.where(observed, Y, 0.0).T * ir[:, None]           # (D, F)
+    x = solveh_banded(ab.reshape(3, -1), b.reshape(-1), lower=True, check_finite=False)
+    return x.reshape(D, F).T
+
+
+def measurement_variance(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Per-channel white-noise variance (D,) from the median absolute second difference
+    over fully observed triples: for white noise of variance r the second difference
+    has variance 6 r, and a smooth 120 fps signal contributes little to it; the median
+    makes it robust to outliers and to the signal's occasional sharp accelerations.
+    Channels with no observed triple get :data:`R_FLOOR`."""
+    Y = np.asarray(Y, float)
+    F, D = Y.shape
+    if F < 3:
+        return np.full(D, R_FLOOR)
+    d2 = np.abs(Y[2:] - 2.0 * Y[1:-1] + Y[:-2]).T           # (D, F-2)
+    if observed.all():
+        med = np.median(d2, axis=1)
+    else:
+        # second differences touching a missing sample are replaced alternately by -1 and
+        # +inf: the median then stays that of the valid ones (to within one rank)
+        ok = (observed[2:] & observed[1:-1] & observed[:-2]).T
+        parity = np.cumsum(~ok, axis=1) % 2
+        med = np.median(np.where(ok, d2, np.where(parity == 1, np.inf, -1.0)), axis=1)
+        med = np.where(ok.any(axis=1) & np.isfinite(med), np.maximum(med, 0.0), 0.0)
+    return np.maximum((_MAD_TO_STD * med) ** 2 / 6.0, R_FLOOR)
+
+
+def smoothing_ratio(Y: np.ndarray, r: np.ndarray, observed_fraction: np.ndarray | float = 1.0) -> np.ndarray:
+    """Per-channel ``lambda = r / q`` (D,) minimising Stein's unbiased estimate of the
+    smoother's mean squared error, in the frequency domain.
+
+    Away from the ends the smoother is the linear filter ``H(w) = 1 / (1 + lambda (2 - 2
+    cos w)^2)``; with the periodogram ``P(w)`` of the channel (gap-free, e.g. bridged,
+    after removing the line through its first and last samples so that its periodic
+    extension has no jump), SURE(lambda) = mean_w (1 - H)^2 P + 2 r_eff mean_w H - r_eff,
+    with ``r_eff = r * observed_fraction`` (bridged samples carry no noise). The minimiser
+    over :data:`LAMBDA_GRID` is taken per channel.
+    """
+    Y = np.asarray(Y, float)
+    N, D = Y.shape
+    if N < 4:
+        return np.full(D, LAMBDA_GRID[0])
+    t = np.arange(N, dtype=float)[:, None] / (N - 1)
+    Z = Y - (Y[:1] + (Y[-1:] - Y[:1]) * t)            # starts and ends at 0: pad with zeros
+    n = sfft.next_fast_len(N, real=True)
+    spec = sfft.rfft(np.ascontiguousarray(Z.T), n=n, axis=1)            # (D, K)
+    P = (spec.real ** 2 + spec.imag ** 2) / n                           # sum_k w_k P_k = ||Z||^2
+    K = P.shape[1]
+    w = np.full(K, 2.0)
+    w[0] = 1.0
+    if n % 2 == 0:
+        w[-1] = 1.0
+    omega = 2.0 * np.pi * np.arange(K) / n
+    g = (2.0 - 2.0 * np.cos(omega)) ** 2
+    H = 1.0 / (1.0 + LAMBDA_GRID[:, None] * g[None, :])                  # (L, K)
+    fit = ((1.0 - H) ** 2 * w) @ P.T / N                                  # (L, D)
+    dof = (H * w).sum(axis=1) / n                                         # (L,) mean gain
+    r_eff = np.asarray(r, float) * observed_fraction
+    risk = fit + 2.0 * r_eff[None, :] * dof[:, None]
+    return LAMBDA_GRID[np.argmin(risk, axis=0)]
+
+
+def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Process and measurement variances ``(q, r)`` (D,) of every channel of a bridged
+    channel matrix ``Y`` (F, D) (gaps interpolated) with its ``observed`` mask:
+    ``r`` from :func:`measurement_variance`, ``q = r / lambda`` with ``lambda`` from
+    :func:`smoothing_ratio`."""
+    observed = np.asarray(observed, bool)
+    r = measurement_variance(Y, observed)
+    lam = smoothing_ratio(Y, r, observed.mean(axis=0))
+    return r / lam, r
+

@@ -1,0 +1,267 @@
+"""The ``mssa`` engine: example-based robust denoising and gap filling with M-SSA filter
+bases (Lou and Chai 2010). See the package docstring for the design."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.core.channels import forward_fill, interpolate_gaps, rewrap_deg, unwrap_deg
+from workbench.core.kinematics import inverse_kinematics
+from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.skeleton import Skeleton
+from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
+
+from .bases import filter_bases, lag_covariance
+from .solver import WindowProjector, robust_filter
+
+SPACES = ("angles", "positions")
+OUTPUTS = ("motion", "reconstruction")
+#: a channel whose spread within training takes is smaller (degrees or file units) is held
+CONSTANT_STD = 1e-6
+#: normalisation floors: angles in degrees, positions in centimetres
+SCALE_FLOOR_DEG = 1.0
+SCALE_FLOOR_CM = 1.0
+#: parameters the fitted bases depend on (weights fitted with others are refused)
+FIT_PARAMS = ("window_frames", "energy_kept")
+
+
+@dataclass(frozen=True)
+class SpaceModel:
+    """Fitted bases of one space. columns (L,): the modelled channels of that space's
+    layout; held: its channels that never vary within a training take (held at the
+    take's median); scale (L,): u = (x - take median) / scale; mean (L,): training mean,
+    the centre of a channel never observed in a take; bases (L M, K) float32,
+    orthonormal columns; spectrum (L M,): every eigenvalue of C_D, largest first."""
+
+    columns: np.ndarray
+    held: np.ndarray
+    mean: np.ndarray
+    scale: np.ndarray
+    bases: np.ndarray
+    spectrum: np.ndarray
+
+    @cached_property
+    def projector(self) -> WindowProjector:
+        return WindowProjector(self.bases, self.bases.shape[0] // self.columns.size)
+
+    @property
+    def energy_share(self) -> float:
+        """Share of the training energy the K kept bases hold."""
+        K = self.bases.shape[1]
+        return float(self.spectrum[:K].sum() / self.spectrum.sum())
+
+
+def unwrap_robust_deg(A: np.ndarray) -> np.ndarray:
+    """Unwrap finite angle columns (F, C) in degrees, robust to isolated outliers: each
+    sample is put within 180 degrees of the median of the three unwrapped samples before
+    it. (``np.unwrap`` follows every sample; an outlier near 180 degrees away from its
+    neighbours can then leave a spurious whole turn behind it for the rest of the take.)"""
+    out = np.array(A, dtype=float)
+    for t in range(1, out.shape[0]):
+        if t < 3:
+            ref = out[t - 1]
+        else:
+            a, b, c = out[t - 3], out[t - 2], out[t - 1]
+            ref = a + b + c - np.maximum(np.maximum(a, b), c) - np.minimum(np.minimum(a, b), c)
+        out[t] -= 360.0 * np.round((out[t] - ref) / 360.0)
+    return out
+
+
+def bridge_gaps_robust(raw: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """A channel matrix ``raw`` (F, 3 + 3J) with observed ``mask`` (F, 3 + 3J): angles
+    unwrapped by :func:`unwrap_robust_deg`, gaps linearly interpolated (finite)."""
+    X = np.array(raw, dtype=float)
+    X[:, 3:] = unwrap_robust_deg(forward_fill(X[:, 3:], mask[:, 3:]))
+    return interpolate_gaps(X, mask)
+
+
+def _ancestors_observed(skeleton: Skeleton, observed: np.ndarray) -> np.ndarray:
+    """(F, J) True where a joint's root-relative position is known: every strict
+    ancestor's rotation is observed (a joint's own rotation moves only its children)."""
+    known = np.ones_like(observed, dtype=bool)
+    for j, p in enumerate(skeleton.parents):
+        if p >= 0:
+            known[:, j] = known[:, p] & observed[:, p]
+    return known
+
+
+def _relative_positions(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
+    """(F, 3J) joint positions minus the root joint's, in file units, from a finite
+    channel matrix (F, 3 + 3J)."""
+    F = channels.shape[0]
+    P = Motion(skeleton, 1.0, channels[:, :3], channels[:, 3:].reshape(F, -1, 3)).positions
+    return (P - P[:, :1]).reshape(F, -1)
+
+
+class MSSA(Engine):
+    """Robust M-SSA filtering (Lou and Chai 2010): learned spatio-temporal filter bases,
+    Welsch data term, alternating coefficient / IRLS motion updates."""
+
+    @dataclass(frozen=True)
+    class Params:
+        #: "angles": filter the joint-angle channels; "positions": filter root-relative
+        #: joint positions and recover angles by inverse kinematics (their marker mode)
+        space: str = "angles"
+        #: M, frames per window (the paper's 20)
+        window_frames: int = 20
+        #: share of the training energy the kept bases hold; sets K (the paper's 0.99)
+        energy_kept: float = 0.99
+        #: Welsch scale p in normalised units (the channel's within-take training spread)
+        welsch_p_std: float = 3.0
+        #: lambda, weight of the bases term against the data term (the paper's 0.1)
+        prior_weight: float = 0.1
+        #: Welsch data term; False: plain least squares (no outlier rejection)
+        robust: bool = True
+        #: stop when the objective changes by less than this share of its value
+        tol_rel_cost: float = 1e-3
+        #: most coefficient/motion update rounds
+        max_iterations: int = 100
+        #: "motion": the filtered motion z of Eq. 11 (the paper's output); "reconstruction":
+        #: at each frame the mean of the covering windows' basis reconstructions E c_s
+        output: str = "motion"
+
+        def __post_init__(self) -> None:
+            if self.space not in SPACES:
+                raise ValueError(f"space must be 'angles' or 'positions', got {self.space!r}")
+            if self.window_frames < 2:
+                raise ValueError(f"window_frames must be at least 2, got {self.window_frames}")
+            if not 0.0 < self.energy_kept <= 1.0:
+                raise ValueError(f"energy_kept must be in (0, 1], got {self.energy_kept}")
+            for name in ("welsch_p_std", "prior_weight"):
+                value = getattr(self, name)
+                if not (math.isfinite(value) and value > 0):
+                    raise ValueError(f"{name} must be a positive number, got {value}")
+            if self.output not in OUTPUTS:
+                raise ValueError(f"output must be 'motion' or 'reconstruction', got {self.output!r}")
+            if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
+                raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
+
+    info = EngineInfo(
+        name="mssa",
+        summary="example-based robust filtering with M-SSA bases learned from clean motion",
+        tasks=frozenset({"denoise", "fill"}),
+        trainable=True,
+        citation="Lou and Chai 2010, Example-based human motion denoising (IEEE TVCG)",
+    )
+
+    def __init__(self, params: "MSSA.Params | None" = None) -> None:
+        super().__init__(params)
+        self.info = dataclasses.replace(type(self).info, space=self.params.space)
+        self.models_: dict[str, SpaceModel] = {}
+
+    # -- training ---------------------------------------------------------------------
+    def _training_channels(self, motion: Motion, space: str) -> tuple[np.ndarray, np.ndarray]:
+        """(candidate columns, (F, len(columns)) channels) of a clean motion in ``space``."""
+        skeleton = motion.skeleton
+        if space == "positions":
+            rel = _relative_positions(skeleton, motion.channels)
+            return np.arange(rel.shape[1]), rel
+        cols = angle_columns(skeleton)
+        return cols, unwrap_deg(motion.channels[:, cols])
+
+    def _fit_space(self, motions: Sequence[Motion], space: str) -> SpaceModel:
+        parts = [self._training_channels(m, space) for m in motions]
+        candidates = parts[0][0]
+        centred = [X - np.median(X, axis=0) for _, X in parts]
+        spread = np.sqrt(np.mean(np.square(np.concatenate(centred)), axis=0))
+        keep = spread > CONSTANT_STD
+        floor = SCALE_FLOOR_DEG if space == "angles" else SCALE_FLOOR_CM / motions[0].skeleton.unit_cm
+        scale = np.maximum(spread[keep], floor)
+        mean = np.concatenate([X for _, X in parts]).mean(axis=0)[keep]
+        normalised = [X[:, keep] / scale for X in centred]
+        bases, spectrum = filter_bases(lag_covariance(normalised, self.params.window_frames),
+                                       self.params.energy_kept)
+        return SpaceModel(candidates[keep], candidates[~keep], mean, scale,
+                          bases.astype(np.float32), spectrum)
+
+    def fit(self, motions: Sequence[Motion], /) -> "MSSA":
+        """Learn the filter bases of both spaces from clean motions of one skeleton layout."""
+        if not motions:
+            raise EngineError("mssa: fit needs at least one clean motion")
+        layouts = {m.skeleton.signature() for m in motions}
+        if len(layouts) > 1:
+            raise EngineError(f"mssa: the training motions mix {len(layouts)} skeleton layouts; "
+                              "fit one skeleton at a time")
+        M = self.params.window_frames
+        if max(m.n_frames for m in motions) < M:
+            raise EngineError(f"mssa: no training motion has the {M} frames a window needs")
+        self.models_ = {space: self._fit_space(motions, space) for space in SPACES}
+        self.skeleton_signature_ = motions[0].skeleton.signature()
+        return self
+
+    # -- cleaning ---------------------------------------------------------------------
+    def clean(self, observation: Observation, /) -> CleanResult:
+        self.require_fitted()
+        skeleton = observation.skeleton
+        self.check_skeleton(skeleton)
+        model = self.models_[self.params.space]
+        raw, mask = observation.motion.channels, channel_mask(observation.observed)
+        X = bridge_gaps_robust(raw, mask)
+        F = X.shape[0]
+        if self.params.space == "angles":
+            Y, observed = X, mask
+        else:
+            Y = _relative_positions(skeleton, X)
+            observed = np.repeat(_ancestors_observed(skeleton, observation.observed), 3, axis=1)
+
+        cols = model.columns
+        sub = Y[:, cols]
+        seen = observed[:, cols].any(axis=0)
+        centre = np.where(seen, np.median(sub, axis=0), model.mean)
+        u = np.where(seen, (sub - centre) / model.scale, 0.0)
+        p = self.params
+        result = robust_filter(u, observed[:, cols], model.projector, p.prior_weight,
+                               p.welsch_p_std, p.robust, p.tol_rel_cost, p.max_iterations)
+        out = np.array(Y)
+        filtered = result.z if p.output == "motion" else result.reconstruction
+        out[:, cols] = filtered * model.scale + centre
+        out[:, model.held] = np.median(Y[:, model.held], axis=0)
+        weight = observed.astype(float)
+        weight[:, cols] = result.weight
+
+        if self.params.space == "positions":
+            root_joint = X[:, :3] + skeleton.offsets[0]
+            world = out.reshape(F, -1, 3) + root_joint[:, None]
+            root, angles = inverse_kinematics(skeleton, world, X[:, 3:].reshape(F, -1, 3))
+            out = np.concatenate([root, angles.reshape(F, -1)], axis=1)
+        out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
+        motion = observation.motion.with_channels(out)
+        return CleanResult(motion, {"robust_weight": weight})
+
+    # -- fitted state -----------------------------------------------------------------
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        return {f"{space}_{f.name}": getattr(model, f.name)
+                for space, model in self.models_.items() for f in dataclasses.fields(SpaceModel)}
+
+    def _fit_params_match(self, manifest: Mapping) -> bool:
+        saved = manifest.get("params", {})
+        return all(saved.get(k) == getattr(self.params, k) for k in FIT_PARAMS)
+
+    def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
+        if not self._fit_params_match(manifest):
+            saved = {k: manifest.get("params", {}).get(k) for k in FIT_PARAMS}
+            raise EngineError(f"mssa: these bases were fitted with {saved}; this engine asks for "
+                              f"{ {k: getattr(self.params, k) for k in FIT_PARAMS} }; retrain it")
+        fields = [f.name for f in dataclasses.fields(SpaceModel)]
+        keys = {space: {name: f"{space}_{name}" for name in fields} for space in SPACES}
+        missing = sorted(k for names in keys.values() for k in names.values() if k not in arrays)
+        if missing:
+            raise EngineError(f"mssa: these weights lack {', '.join(missing)} (an older format); "
+                              "retrain them")
+        self.models_ = {space: SpaceModel(**{name: np.asarray(arrays[key]) for name, key in names.items()})
+                        for space, names in keys.items()}
+
+    def load_pretrained(self) -> "MSSA":
+        """Load the committed bases when they were fitted with this engine's window and
+        energy share (other settings need their own training); otherwise stay unfitted."""
+        path = self.default_weights_dir() / "manifest.json"
+        if path.exists() and self._fit_params_match(json.loads(path.read_text(encoding="utf-8"))):
+            self.load(self.default_weights_dir())
+        return self

@@ -1,0 +1,200 @@
+"""The ``mssa`` engine (Lou and Chai 2010): bases, robust filtering, gap filling, the
+position mode, skeleton checks and saved state. Bases are fitted here on four short
+CMU training takes; the walk fixture (02_01) is not among them."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from engines.mssa import MSSA
+from engines.mssa.bases import window_blocks
+from engines.mssa.solver import WindowProjector, robust_filter
+from workbench import registry
+from workbench.core import Observation
+from workbench.core.motion import angle_columns, channel_mask
+from workbench.data import select
+from workbench.engine import EngineError, NotFittedError
+from workbench.metrics import angle_error_deg, bone_lengths
+from workbench.testing import check_engine
+
+FIT_CLIPS = ("cmu/walk/02_02", "cmu/walk/07_01", "cmu/jog/02_03", "cmu/run/09_01")
+
+
+@pytest.fixture(scope="module")
+def fitted(clips):
+    by_id = {c.id: c for c in clips}
+    return MSSA().fit([by_id[i].load() for i in FIT_CLIPS])
+
+
+def with_params(engine: MSSA, **changes) -> MSSA:
+    """Another engine sharing ``engine``'s fitted bases."""
+    other = MSSA(dataclasses.replace(engine.params, **changes))
+    other.models_, other.skeleton_signature_ = engine.models_, engine.skeleton_signature_
+    return other
+
+
+def modelled_angle_columns(engine: MSSA, motion) -> np.ndarray:
+    return np.intersect1d(engine.models_["angles"].columns, angle_columns(motion.skeleton))
+
+
+@pytest.mark.parametrize("space", ["angles", "positions"])
+def test_conformance(fitted, walk, kick, space):
+    check_engine(lambda: with_params(fitted, space=space), walk.slice(0, 150), kick.slice(0, 150))
+
+
+def test_bases_are_orthonormal_and_keep_99_percent_of_the_energy(fitted):
+    for space, model in fitted.models_.items():
+        E = model.bases.astype(float)
+        LM, K = E.shape
+        assert LM == 20 * model.columns.size and 0 < K < LM, space
+        assert np.allclose(E.T @ E, np.eye(K), atol=1e-5), space
+        assert np.all(np.diff(model.spectrum) <= 1e-9 * model.spectrum[0]), space
+        assert model.energy_share >= 0.99, space
+        assert model.spectrum[:K - 1].sum() / model.spectrum.sum() < 0.99, f"{space}: K is not the smallest"
+    # constant channels (CMU's LHipJoint rotations are always 0) are held, not modelled
+    assert not np.isin([6, 7, 8], fitted.models_["angles"].columns).any()
+    assert np.isin([6, 7, 8], fitted.models_["angles"].held).all()
+
+
+def test_projector_matches_the_window_by_window_projection(fitted):
+    model = fitted.models_["angles"]
+    E, M = model.bases.astype(float), 20
+    rng = np.random.default_rng(0)
+    for F in (20, 33, 90):
+        z = np.cumsum(rng.normal(size=(F, model.columns.size)), axis=0) * 0.2
+        added, prior = WindowProjector(E, M)(z)
+        ref, ref_prior = np.zeros_like(z), 0.0
+        for s0, W in window_blocks(z, M):
+            R = (W @ E) @ E.T
+            ref_prior += np.sum((W - R) ** 2)
+            R = R.reshape(len(W), -1, M)
+            for s in range(len(W)):
+                ref[s0 + s:s0 + s + M] += R[s].T
+        assert np.allclose(added, ref, atol=1e-5 * np.abs(ref).max()), F
+        assert np.isclose(prior, ref_prior, rtol=1e-4), F
+
+
+def _outlier_case(motion, engine, rate=0.05, seed=1):
+    """``motion`` with mild noise on the modelled angle channels and 5 % of those entries
+    off by 60-120 degrees; returns (observation, outlier mask (F, D), columns)."""
+    rng = np.random.default_rng(seed)
+    X = motion.channels
+    cols = modelled_angle_columns(engine, motion)
+    X[:, cols] += rng.normal(size=(motion.n_frames, cols.size)) * 1.0
+    hit = np.zeros(X.shape, bool)
+    hit[:, cols] = rng.random((motion.n_frames, cols.size)) < rate
+    X[hit] += rng.choice([-1.0, 1.0], hit.sum()) * rng.uniform(60.0, 120.0, hit.sum())
+    return Observation(motion.with_channels(X)), hit, cols
+
+
+def test_outliers_are_rejected_better_than_by_least_squares(fitted, walk):
+    obs, hit, cols = _outlier_case(walk, fitted)
+    robust = fitted.clean(obs)
+    plain = with_params(fitted, robust=False).clean(obs)
+
+    def rms(res):
+        err = angle_error_deg(walk, res.motion)
+        keep = np.isin(angle_columns(walk.skeleton), cols)
+        return float(np.sqrt(np.mean(err[:, keep] ** 2)))
+
+    d = ((obs.motion.channels - walk.channels)[:, cols] + 180.0) % 360.0 - 180.0
+    noisy = float(np.sqrt(np.mean(d ** 2)))
+    assert rms(robust) < 0.35 * rms(plain) and rms(plain) < noisy
+    assert rms(robust) < 3.0
+    w = robust.diagnostics["robust_weight"]
+    assert w.shape == walk.channels.shape
+    assert np.median(w[hit]) < 0.05 and np.mean(w[hit] < 0.5) > 0.9
+    assert np.median(w[:, cols][~hit[:, cols]]) > 0.9
+    assert np.all(w[:, :6] == 1.0)  # the root is passed through as observed
+    assert np.allclose(robust.motion.channels[:, :6], walk.channels[:, :6])
+
+
+def test_objective_never_increases(fitted, walk):
+    obs, _, cols = _outlier_case(walk, fitted)
+    model = fitted.models_["angles"]
+    X = obs.motion.channels[:, model.columns]
+    u = (X - np.median(X, axis=0)) / model.scale
+    res = robust_filter(u, np.ones_like(u, bool), model.projector, 0.1, 3.0, tol=0.0, max_iterations=15)
+    assert res.iterations == 15
+    assert np.all(np.diff(res.cost) <= 1e-9 * res.cost[0])
+
+
+def test_missing_entries_are_filled_and_observed_ones_kept_close(fitted, walk):
+    rng = np.random.default_rng(2)
+    F, J = walk.n_frames, walk.skeleton.n_joints
+    observed = rng.random((F, J)) > 0.05
+    observed[100:130, [3, 8, 19]] = False  # LeftLeg, RightLeg, LeftForeArm for 1/4 s
+    observed[:, 0] = True
+    res = fitted.clean(Observation(walk, observed))
+    out = res.motion.channels
+    assert np.isfinite(out).all() and out.shape == walk.channels.shape
+    mask = channel_mask(observed)
+    err = np.abs((out - walk.channels + 180) % 360 - 180)
+    cols = modelled_angle_columns(fitted, walk)
+    # four training takes: observed samples stay within ~2 degrees, filled ones ~3 (RMS)
+    assert np.sqrt(np.mean(err[:, cols][mask[:, cols]] ** 2)) < 2.5
+    assert np.sqrt(np.mean(err[:, cols][~mask[:, cols]] ** 2)) < 5.0
+    assert np.all(res.diagnostics["robust_weight"][~mask] == 0.0)
+
+
+def test_position_mode_returns_a_motion_with_the_skeletons_bone_lengths(fitted, walk):
+    engine = with_params(fitted, space="positions")
+    assert engine.info.space == "positions" and engine.spec == "mssa:space=positions"
+    obs, _, _ = _outlier_case(walk, fitted)
+    observed = np.ones((walk.n_frames, walk.skeleton.n_joints), bool)
+    observed[50:70, 19] = False
+    res = engine.clean(Observation(obs.motion, observed))
+    motion = res.motion
+    assert motion.n_frames == walk.n_frames and np.isfinite(motion.channels).all()
+    rest = np.linalg.norm(walk.skeleton.offsets[1:], axis=1)
+    assert np.allclose(bone_lengths(motion.positions, walk.skeleton.parents), rest[None], atol=1e-6)
+    assert res.diagnostics["robust_weight"].shape == (walk.n_frames, 3 * walk.skeleton.n_joints)
+    noisy = obs.motion.positions - obs.motion.positions[:, :1]
+    clean = motion.positions - motion.positions[:, :1]
+    truth = walk.positions - walk.positions[:, :1]
+    def err(P):
+        return np.mean(np.linalg.norm(P - truth, axis=2))
+
+    assert err(clean) < 0.5 * err(noisy)
+
+
+def test_refuses_another_skeleton_and_mixed_training(fitted, walk, kick):
+    with pytest.raises(EngineError, match="skeleton"):
+        fitted.clean(Observation(kick))
+    with pytest.raises(EngineError, match="skeleton"):
+        MSSA().fit([walk, kick])
+
+
+def test_clean_before_fit_raises_not_fitted(walk):
+    with pytest.raises(NotFittedError):
+        MSSA().clean(Observation(walk))
+    with pytest.raises(NotFittedError):
+        registry.create("mssa:window_frames=10").clean(Observation(walk))  # no bases for M=10
+
+
+def test_save_load_round_trip_gives_identical_output(fitted, walk, tmp_path):
+    fitted.save(tmp_path, {"training": {"clips": list(FIT_CLIPS), "split": "train"}})
+    loaded = MSSA().load(tmp_path)
+    obs, _, _ = _outlier_case(walk, fitted)
+    for space in ("angles", "positions"):
+        a = with_params(fitted, space=space).clean(obs)
+        b = with_params(loaded, space=space).clean(obs)
+        assert np.array_equal(a.motion.channels, b.motion.channels), space
+        assert np.array_equal(a.diagnostics["robust_weight"], b.diagnostics["robust_weight"]), space
+    with pytest.raises(EngineError, match="retrain"):
+        MSSA(MSSA.Params(window_frames=10)).load(tmp_path)
+
+
+def test_committed_weights_load_and_were_fitted_on_the_train_split_only(clips):
+    engine = registry.create("mssa")
+    assert engine.skeleton_signature_ is not None, "engines/mssa/weights/ is missing"
+    manifest = json.loads((engine.default_weights_dir() / "manifest.json").read_text())
+    test_ids = {c.id for c in select(clips, "test")}
+    assert test_ids
+    assert manifest["training"]["split"] == "train"
+    assert manifest["training"]["clips"] and not test_ids & set(manifest["training"]["clips"])
+    assert all(m.energy_share >= 0.99 for m in engine.models_.values())
