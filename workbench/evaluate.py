@@ -45,7 +45,7 @@ class BenchResult:
             cells = []
             for c in cols:
                 v = s.get(c, float("nan"))
-                cells.append(f"{v:,.0f}" if c == "frames_per_s" else f"{v:.3f}")
+                cells.append(f"{v:,.0f}" if c == "frames_per_s" else f"{v:.3g}" if c == "jitter_cm_s3" else f"{v:.3f}")
             lines.append(f"| {spec} | " + " | ".join(cells) + " |")
         return "\n".join(lines)
 
