@@ -82,6 +82,27 @@ def bridge_gaps_robust(raw: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return interpolate_gaps(X, mask)
 
 
+def noise_std(u: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """(L,) robust estimate of each channel's white-noise std in ``u`` (F, L): the MAD
+    of its second differences over fully observed frame triples, / sqrt(6) (a second
+    difference of white noise has variance 6 sigma^2; at 120 fps the clean motion's
+    own second differences are small next to it, and the MAD ignores outliers).
+    Channels with fewer than 8 such triples take the median of the others."""
+    F, L = u.shape
+    if F < 3:
+        return np.zeros(L)
+    d2 = np.diff(u, n=2, axis=0)
+    ok = observed[2:] & observed[1:-1] & observed[:-2]
+    d2 = np.where(ok, d2, np.nan)
+    enough = ok.sum(axis=0) >= 8
+    sigma = np.zeros(L)
+    if enough.any():
+        med = np.nanmedian(d2[:, enough], axis=0)
+        sigma[enough] = 1.4826 * np.nanmedian(np.abs(d2[:, enough] - med), axis=0) / np.sqrt(6.0)
+        sigma[~enough] = np.median(sigma[enough])
+    return sigma
+
+
 def _ancestors_observed(skeleton: Skeleton, observed: np.ndarray) -> np.ndarray:
     """(F, J) True where a joint's root-relative position is known: every strict
     ancestor's rotation is observed (a joint's own rotation moves only its children)."""
@@ -112,11 +133,11 @@ class MSSA(Engine):
         #: M, frames per window (the paper's 20)
         window_frames: int = 20
         #: share of the training energy the kept bases hold; sets K (the paper's 0.99)
-        energy_kept: float = 0.99
+        energy_kept: float = 0.999
         #: Welsch scale p in normalised units (the channel's within-take training spread)
         welsch_p_std: float = 3.0
         #: lambda, weight of the bases term against the data term (the paper's 0.1)
-        prior_weight: float = 0.1
+        prior_weight: float = 3.0
         #: Welsch data term; False: plain least squares (no outlier rejection)
         robust: bool = True
         #: stop when the objective changes by less than this share of its value
@@ -126,6 +147,18 @@ class MSSA(Engine):
         #: "motion": the filtered motion z of Eq. 11 (the paper's output); "reconstruction":
         #: at each frame the mean of the covering windows' basis reconstructions E c_s
         output: str = "motion"
+        #: noise-adaptive data term: estimate every channel's noise std sigma from the
+        #: observation (MAD of second differences), weight its samples by 1 / (sigma^2 +
+        #: noise_floor^2) and set its Welsch scale to welsch_p_sigma sqrt(sigma^2 +
+        #: noise_floor^2); False: the paper's uniform data term with scale welsch_p_std
+        adaptive: bool = True
+        #: model-error floor of the adaptive noise estimate, normalised units
+        noise_floor: float = 0.05
+        #: adaptive Welsch scale, in multiples of sqrt(sigma^2 + noise_floor^2)
+        welsch_p_sigma: float = 3.0
+        #: "alternating": the paper's coefficient / motion updates; "cg": exact
+        #: minimisation of each IRLS majoriser by conjugate gradients (same objective)
+        solver: str = "cg"
 
         def __post_init__(self) -> None:
             if self.space not in SPACES:
@@ -134,12 +167,14 @@ class MSSA(Engine):
                 raise ValueError(f"window_frames must be at least 2, got {self.window_frames}")
             if not 0.0 < self.energy_kept <= 1.0:
                 raise ValueError(f"energy_kept must be in (0, 1], got {self.energy_kept}")
-            for name in ("welsch_p_std", "prior_weight"):
+            for name in ("welsch_p_std", "prior_weight", "noise_floor", "welsch_p_sigma"):
                 value = getattr(self, name)
                 if not (math.isfinite(value) and value > 0):
                     raise ValueError(f"{name} must be a positive number, got {value}")
             if self.output not in OUTPUTS:
                 raise ValueError(f"output must be 'motion' or 'reconstruction', got {self.output!r}")
+            if self.solver not in ("alternating", "cg"):
+                raise ValueError(f"solver must be 'alternating' or 'cg', got {self.solver!r}")
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -217,8 +252,12 @@ class MSSA(Engine):
         centre = np.where(seen, np.median(sub, axis=0), model.mean)
         u = np.where(seen, (sub - centre) / model.scale, 0.0)
         p = self.params
-        result = robust_filter(u, observed[:, cols], model.projector, p.prior_weight,
-                               p.welsch_p_std, p.robust, p.tol_rel_cost, p.max_iterations)
+        alpha, welsch = observed[:, cols], p.welsch_p_std
+        if p.adaptive:
+            var = np.square(noise_std(u, alpha)) + p.noise_floor ** 2
+            alpha, welsch = alpha / var, p.welsch_p_sigma * np.sqrt(var)
+        result = robust_filter(u, alpha, model.projector, p.prior_weight,
+                               welsch, p.robust, p.tol_rel_cost, p.max_iterations, p.solver)
         out = np.array(Y)
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre

@@ -96,7 +96,7 @@ class FilterResult:
 
     z: np.ndarray
     reconstruction: np.ndarray
-    weight: np.ndarray
+    weight: np.ndarray  # exp(-r^2 / p^2) where observed (1 without ``robust``), 0 where missing
     cost: list[float]
     iterations: int
 
@@ -106,22 +106,33 @@ def robust_filter(
     observed: np.ndarray,
     projector: WindowProjector,
     prior_weight: float,
-    welsch_p: float,
+    welsch_p: "float | np.ndarray",
     robust: bool = True,
     tol: float = 1e-3,
     max_iterations: int = 100,
+    method: str = "alternating",
 ) -> FilterResult:
     """Minimise J for ``y`` (F, L), finite everywhere (missing entries initialised, e.g.
-    by linear interpolation), with ``observed`` (F, L) bools. Clips shorter than the
-    window are padded at the end with their last frame, marked missing, and cropped
-    again."""
+    by linear interpolation), with ``observed`` (F, L): bools, or non-negative data
+    weights alpha (0 where missing; a larger alpha trusts the sample more, e.g. the
+    inverse of its estimated noise variance). ``welsch_p`` is a scalar or an array
+    broadcasting to (F, L) (e.g. one scale per channel). Clips shorter than the window
+    are padded at the end with their last frame, marked missing, and cropped again.
+
+    ``method`` "alternating": the paper's coefficient / motion updates (each motion
+    update ``IRLS_STEPS`` element-wise IRLS steps); "cg": every iteration fixes the IRLS
+    weights w and minimises the resulting quadratic majoriser of J exactly over z (the
+    coefficients c_s = E^T z_s are eliminated in closed form), i.e. solves
+    ``(W + 2 lambda (N - A)) z = W y`` by preconditioned conjugate gradients; the same
+    objective, reached in far fewer filter applications when lambda n >> w (the
+    alternating updates then crawl)."""
     F, M = y.shape[0], projector.window
     if F < M:
         y = np.pad(y, ((0, M - F), (0, 0)), mode="edge")
         observed = np.pad(observed, ((0, M - F), (0, 0)), constant_values=False)
     alpha = np.asarray(observed, float)
     lam = float(prior_weight)
-    p2 = float(welsch_p) ** 2
+    p2 = np.square(np.asarray(welsch_p, float))
     n = coverage(y.shape[0], M)[:, None]
 
     def weights(z: np.ndarray) -> np.ndarray:
@@ -135,6 +146,8 @@ def robust_filter(
     z = np.array(y, dtype=float)
     costs: list[float] = []
     iterations = 0
+    if method == "cg":
+        return _cg_filter(y, alpha, z, projector, lam, n, weights, data_cost, tol, max_iterations, F, p2, robust)
     while True:
         added, prior = projector(z)
         costs.append(data_cost(z) + lam * prior)
@@ -146,4 +159,48 @@ def robust_filter(
             w = weights(z)
             z = (w * y + 2.0 * lam * added) / (w + 2.0 * lam * n)
         iterations += 1
-    return FilterResult(z[:F], (added / n)[:F], weights(z)[:F], costs, iterations)
+    trust = (alpha > 0) * (np.exp(-np.square(z - y) / p2) if robust else 1.0)
+    return FilterResult(z[:F], (added / n)[:F], trust[:F], costs, iterations)
+
+
+#: conjugate-gradient iterations per quadratic solve, and their relative residual target
+CG_STEPS = 80
+CG_TOL = 3e-4
+
+
+def _cg_filter(y, alpha, z, projector, lam, n, weights, data_cost, tol, max_iterations, F, p2, robust):
+    """``robust_filter`` with ``method="cg"`` (see there)."""
+    M, L = projector.window, y.shape[1]
+    g0 = np.diag(projector.taps.reshape(2 * M - 1, L, L)[M - 1]) / M  # diagonal of A / n
+    costs: list[float] = []
+    iterations = 0
+    added, prior = projector(z)
+    costs.append(data_cost(z) + lam * prior)
+    while iterations < max_iterations:
+        w = weights(z)
+        precond = 1.0 / (w + 2.0 * lam * n * (1.0 - g0) + 1e-12)
+
+        def apply(v):
+            return w * v + 2.0 * lam * (n * v - projector(v)[0])
+
+        r = w * y - apply(z)
+        d = precond * r
+        rz = float(np.sum(r * d))
+        target = CG_TOL ** 2 * float(np.sum(np.square(w * y))) + 1e-30
+        for _ in range(CG_STEPS):
+            if float(np.sum(r * r)) <= target:
+                break
+            q = apply(d)
+            step = rz / float(np.sum(d * q))
+            z = z + step * d
+            r = r - step * q
+            s_ = precond * r
+            rz, rz_old = float(np.sum(r * s_)), rz
+            d = s_ + (rz / rz_old) * d
+        iterations += 1
+        added, prior = projector(z)
+        costs.append(data_cost(z) + lam * prior)
+        if not robust or abs(costs[-2] - costs[-1]) <= tol * costs[-2]:
+            break
+    trust = (alpha > 0) * (np.exp(-np.square(z - y) / p2) if robust else 1.0)
+    return FilterResult(z[:F], (added / n)[:F], trust[:F], costs, iterations)

@@ -12,6 +12,7 @@ import pytest
 
 from engines.mssa import MSSA
 from engines.mssa.bases import window_blocks
+from engines.mssa.engine import noise_std
 from engines.mssa.solver import WindowProjector, robust_filter
 from workbench import registry
 from workbench.core import Observation
@@ -46,15 +47,16 @@ def test_conformance(fitted, walk, kick, space):
     check_engine(lambda: with_params(fitted, space=space), walk.slice(0, 150), kick.slice(0, 150))
 
 
-def test_bases_are_orthonormal_and_keep_99_percent_of_the_energy(fitted):
+def test_bases_are_orthonormal_and_keep_the_requested_energy(fitted):
+    kept = fitted.params.energy_kept
     for space, model in fitted.models_.items():
         E = model.bases.astype(float)
         LM, K = E.shape
         assert LM == 20 * model.columns.size and 0 < K < LM, space
         assert np.allclose(E.T @ E, np.eye(K), atol=1e-5), space
         assert np.all(np.diff(model.spectrum) <= 1e-9 * model.spectrum[0]), space
-        assert model.energy_share >= 0.99, space
-        assert model.spectrum[:K - 1].sum() / model.spectrum.sum() < 0.99, f"{space}: K is not the smallest"
+        assert model.energy_share >= kept - 1e-12, space
+        assert model.spectrum[:K - 1].sum() / model.spectrum.sum() < kept, f"{space}: K is not the smallest"
     # constant channels (CMU's LHipJoint rotations are always 0) are held, not modelled
     assert not np.isin([6, 7, 8], fitted.models_["angles"].columns).any()
     assert np.isin([6, 7, 8], fitted.models_["angles"].held).all()
@@ -121,6 +123,28 @@ def test_objective_never_increases(fitted, walk):
     res = robust_filter(u, np.ones_like(u, bool), model.projector, 0.1, 3.0, tol=0.0, max_iterations=15)
     assert res.iterations == 15
     assert np.all(np.diff(res.cost) <= 1e-9 * res.cost[0])
+    # the conjugate-gradient solver minimises the same objective, with per-channel data
+    # weights and scales, and never raises it either; it gets lower than 15 alternating rounds
+    alpha = np.ones_like(u) / np.linspace(0.5, 2.0, u.shape[1])
+    cg = robust_filter(u, alpha, model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg")
+    assert cg.iterations == 6
+    assert np.all(np.diff(cg.cost) <= 1e-6 * cg.cost[0])
+    same = robust_filter(u, np.ones_like(u, bool), model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg")
+    assert same.cost[-1] <= res.cost[-1]
+
+
+def test_noise_estimate_tracks_the_added_noise(fitted, walk):
+    model = fitted.models_["angles"]
+    X = walk.channels[:, model.columns]
+    u = (X - np.median(X, axis=0)) / model.scale
+    rng = np.random.default_rng(3)
+    seen = np.ones_like(u, bool)
+    clean = noise_std(u, seen)
+    assert np.median(clean) < 0.05  # clean 120 fps motion: second differences are small
+    for sigma in (0.1, 0.5):
+        est = noise_std(u + rng.normal(size=u.shape) * sigma, seen)
+        ratio = est / sigma  # the clean motion's own curvature adds a little on fast channels
+        assert abs(np.median(ratio) - 1.0) < 0.15 and np.all((ratio > 0.7) & (ratio < 1.6)), (sigma, ratio)
 
 
 def test_missing_entries_are_filled_and_observed_ones_kept_close(fitted, walk):
@@ -197,4 +221,4 @@ def test_committed_weights_load_and_were_fitted_on_the_train_split_only(clips):
     assert test_ids
     assert manifest["training"]["split"] == "train"
     assert manifest["training"]["clips"] and not test_ids & set(manifest["training"]["clips"])
-    assert all(m.energy_share >= 0.99 for m in engine.models_.values())
+    assert all(m.energy_share >= engine.params.energy_kept - 1e-12 for m in engine.models_.values())
