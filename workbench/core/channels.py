@@ -110,3 +110,19 @@ def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray) -> np
         turns = np.where(obs, np.round(diff[:, cols] / 360.0), 0.0)
         out[:, cols] += 360.0 * forward_fill(turns, obs)
     return out
+
+
+def retime(X: np.ndarray, speed: float) -> np.ndarray:
+    """Samples (F, ...) played ``speed`` times as fast: linear interpolation in time at
+    frames 0, speed, 2 speed, ... up to F - 1, giving (floor((F - 1) / speed) + 1, ...).
+    Angle columns must be unwrapped first."""
+    X = np.asarray(X, float)
+    F = X.shape[0]
+    if not speed > 0:
+        raise ValueError(f"speed must be positive, got {speed}")
+    if F < 2:
+        return X.copy()
+    t = np.arange(0.0, F - 1 + 1e-9, speed)
+    i = np.minimum(np.floor(t).astype(int), F - 2)
+    w = (t - i).reshape((-1,) + (1,) * (X.ndim - 1))
+    return X[i] * (1 - w) + X[i + 1] * w

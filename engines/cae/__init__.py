@@ -1,0 +1,94 @@
+"""Convolutional autoencoders over the motion image (Kaufmann et al. 2020, "Convolutional
+Autoencoders for Human Motion Infilling", 3DV) and their Table 1 baselines:
+
+* ``cae``: the paper's model (VGG-style 2-D convolutional autoencoder, gap curriculum);
+* ``cae-vanilla``: the "Vanilla AE" ablation, one strided convolution per unit;
+* ``holden``: Holden et al. (2016)'s motion manifold, a temporal convolution over frames
+  with max pooling and unpooling.
+
+All three share the representation (:mod:`.representation`), the training loop
+(:mod:`.training`) and inference with IK back to joint angles (:mod:`.engine`); only the
+network differs (:mod:`.networks`). Committed weights live in ``weights/<name>/``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from workbench.engine import EngineInfo
+
+from .engine import ConvAutoencoderEngine, TrainingParams
+
+CITATION = "Kaufmann, Aksan, Song, Pece, Ziegler, Hilliges 2020, Convolutional Autoencoders for Human Motion Infilling"
+TASKS = frozenset({"fill", "denoise"})
+
+
+@dataclass(frozen=True)
+class ImageParams(TrainingParams):
+    """Encoder widths: ``base_width`` channels in the first unit, doubling per unit up
+    to ``top_width``."""
+
+    base_width: int = 16
+    top_width: int = 192
+
+
+@dataclass(frozen=True)
+class HoldenParams(TrainingParams):
+    """``hidden`` feature channels of the temporal convolution, ``kernel_frames`` wide (odd)."""
+
+    hidden: int = 256
+    kernel_frames: int = 25
+
+
+class CAE(ConvAutoencoderEngine):
+    """Kaufmann et al.'s convolutional autoencoder with the gap curriculum."""
+
+    info = EngineInfo(
+        name="cae",
+        summary="convolutional autoencoder over the pose x time image (Kaufmann 2020); IK back to angles",
+        tasks=TASKS, space="positions", trainable=True, citation=CITATION + ", §3")
+    Params = ImageParams
+
+    def build_network(self, n_rows: int):
+        from .networks import KaufmannNet
+
+        return KaufmannNet(self.params.base_width, self.params.top_width, self.params.bf16)
+
+
+class VanillaCAE(ConvAutoencoderEngine):
+    """The "Vanilla AE" ablation of Table 1: one strided convolution per unit."""
+
+    info = EngineInfo(
+        name="cae-vanilla",
+        summary="Kaufmann 2020's Vanilla AE ablation: one strided 3x3 convolution per unit",
+        tasks=TASKS, space="positions", trainable=True, citation=CITATION + ", §4.1 (Vanilla AE)")
+    Params = ImageParams
+
+    def build_network(self, n_rows: int):
+        from .networks import VanillaNet
+
+        return VanillaNet(self.params.base_width, self.params.top_width, self.params.bf16)
+
+
+class Holden(ConvAutoencoderEngine):
+    """Holden et al.'s motion manifold (temporal convolution, max pooling / unpooling)."""
+
+    info = EngineInfo(
+        name="holden",
+        summary="Holden 2016's motion manifold: 1-D convolution over frames, pooling/unpooling",
+        tasks=TASKS, space="positions", trainable=True,
+        citation="Holden, Saito, Komura 2016, A Deep Learning Framework for Character Motion Synthesis and "
+                 "Editing, §4 (as the baseline of " + CITATION + ", Table 1)")
+    Params = HoldenParams
+
+    def build_network(self, n_rows: int):
+        from .networks import HoldenNet
+
+        if self.params.kernel_frames % 2 == 0:
+            from workbench.engine import EngineError
+
+            raise EngineError(f"holden: kernel_frames must be odd, got {self.params.kernel_frames}")
+        return HoldenNet(n_rows, self.params.hidden, self.params.kernel_frames, self.params.bf16)
+
+
+__all__ = ["CAE", "VanillaCAE", "Holden", "ConvAutoencoderEngine"]

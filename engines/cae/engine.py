@@ -1,0 +1,255 @@
+"""The engine machinery shared by ``cae``, ``cae-vanilla`` and ``holden``: the motion image
+(:mod:`.representation`), training (:mod:`.training`), inference and IK back to angles.
+
+Cleaning a take (Observation -> Motion):
+
+1. The observation with its gaps bridged linearly (angles unwrapped) gives world joint
+   positions by FK; the image (F, H) is built from them and masked where the positions
+   are not known (root or an ancestor's angles missing). Joints whose angles never vary
+   in the training data (CMU: LHipJoint, RHipJoint, LeftShoulder, RightShoulder) count
+   as observed, their bridged value being exact.
+2. The clip is reflected at its end to a multiple of 32 frames, normalised with the
+   training statistics, unknown entries zeroed, the mask added as a second channel, and
+   the network predicts the whole image in one pass; the padding is cropped.
+3. The root's floor trajectory is the observed one where the root is observed and the
+   predicted velocities integrated across the gaps (attached to the known frames at
+   both ends); the image on that trajectory gives the raw network positions
+   (diagnostic ``raw_positions``, (F, J, 3), file units).
+4. IK with the skeleton's bone lengths turns them into angles (twist about single-child
+   bones from the bridged observation), so the result is a normal Motion. Observed
+   frames may change slightly, as in the paper (the default). With
+   ``keep_observed=true`` the observed angles and root positions come back exactly:
+   the image's known entries are kept, and the network's residual there (known minus
+   predicted) is interpolated linearly across each hole and added to the prediction,
+   so the filled stretch joins the kept frames without a jump; IK then aims the missing
+   joints from the exactly known positions. (So it fills gaps but does not denoise.)
+
+Constraints (the paper's tertiary motion blending): ``clean(observation,
+constraints={joint: (frames, positions)})`` with ``frames`` (n,) frame indices and
+``positions`` (n, 3) world positions in file units enters those positions as known
+entries of the image. Where the root is missing they are placed in the body frame of
+a first, unconstrained pass's trajectory, which the result then keeps. The network
+takes them as known entries (it was trained with such partial poses inside gaps), and
+they are then met, as far as the bone lengths allow: the network's miss at the
+constrained entries is added to its output, blended in linearly from zero at the
+neighbouring known entries of the same row (from their own miss with
+``keep_observed=true``). ``raw_positions`` stays the network's output.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from workbench.core.channels import interpolate_gaps
+from workbench.core.kinematics import forward_kinematics, inverse_kinematics
+from workbench.core.motion import Motion, Observation, channel_mask
+from workbench.engine import CleanResult, Engine, EngineError
+
+from ..identity import bridge_gaps, rewrap_angles
+from .representation import (Layout, decode, encode, heading, image_mask, known_positions, mirror_rows,
+                             pad_time, resample, rot_y, trajectory)
+
+#: parameters that only change how a trained network is used (kept when loading weights)
+INFERENCE_PARAMS = ("keep_observed",)
+
+Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
+
+
+@dataclass(frozen=True)
+class TrainingParams:
+    """Training and use, shared by the three engines. An epoch is ``frames_per_epoch``
+    frames in windows of ``window_frames`` frames (a multiple of 32); the curriculum
+    raises the mean gap by 10 frames every ``curriculum_epochs`` epochs (10 to 120, then
+    held); ``time_scale_pct``: every training clip also played this much slower and
+    faster; ``mirror``: half the windows mirrored left/right; ``bf16``: bf16 autocast
+    (training and inference); ``keep_observed``: return observed samples exactly (see
+    the module docstring). The defaults train ``cae`` in about 6 minutes here."""
+
+    epochs: int = 120
+    frames_per_epoch: int = 100_000
+    window_frames: int = 256
+    batch_size: int = 16
+    learning_rate: float = 1e-3
+    curriculum_epochs: int = 8
+    gap_sigma_frames: float = 20.0
+    mirror: bool = True
+    time_scale_pct: float = 10.0
+    seed: int = 0
+    bf16: bool = True
+    keep_observed: bool = False
+
+
+class ConvAutoencoderEngine(Engine):
+    """Base of the motion-image autoencoders; subclasses set ``info``, ``Params`` and
+    :meth:`build_network`."""
+
+    Params = TrainingParams
+
+    # -- the network ----------------------------------------------------------------
+    def build_network(self, n_rows: int):
+        """A fresh network for images of ``n_rows`` rows (torch module)."""
+        raise NotImplementedError
+
+    def default_weights_dir(self) -> Path:
+        """``engines/cae/weights/<engine name>``."""
+        return Path(__file__).resolve().parent / "weights" / self.info.name
+
+    # -- training -------------------------------------------------------------------
+    def fit(self, motions: Sequence[Motion], /) -> "ConvAutoencoderEngine":
+        """Train on clean motions of one skeleton layout (the training split)."""
+        from engines.torch_support import seed_everything, use_threads
+
+        from .training import WindowSampler, train
+
+        p = self.params
+        if not motions:
+            raise EngineError(f"engine {self.info.name!r}: no training motions")
+        skeleton = motions[0].skeleton
+        if any(m.skeleton.signature() != skeleton.signature() for m in motions):
+            raise EngineError(f"engine {self.info.name!r} trains on one skeleton layout; these motions mix several")
+        use_threads()
+        seed_everything(p.seed)
+        layout = Layout.from_skeleton(skeleton)
+        net = self.build_network(layout.n_rows)
+        if p.window_frames % net.time_multiple:
+            raise EngineError(f"window_frames must be a multiple of {net.time_multiple}, got {p.window_frames}")
+        spread = np.concatenate([m.angles_deg for m in motions]).std(axis=0).max(axis=1)
+        constant = np.flatnonzero(spread < 1e-9)
+        constant = constant[constant > 0]
+        maskable = np.array([j for j in range(1, skeleton.n_joints)
+                             if j not in constant and skeleton.has_rotation[j]])
+        scales = (1.0,) if p.time_scale_pct <= 0 else (1 - p.time_scale_pct / 100, 1.0, 1 + p.time_scale_pct / 100)
+        images = []
+        for m in motions:
+            P, R = forward_kinematics(skeleton, m.root_positions, m.angles_deg)
+            images += [encode(layout, *resample(P, heading(R[:, 0]), s)) for s in scales]
+        frames = [im.shape[0] for im in images]
+        mirror = mirror_rows(layout, skeleton.names) if p.mirror else None
+        pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
+        images = [pad_time(im, im, p.window_frames)[0] for im in images]
+        # float32 as saved, so a loaded engine computes exactly what the fitted one does
+        mean = pool.mean(axis=0).astype(np.float32).astype(float)
+        std = np.maximum(pool.std(axis=0), 1e-6).astype(np.float32).astype(float)
+        sampler = WindowSampler(images, frames, mean, std, layout, mirror, maskable, p.window_frames,
+                                p.gap_sigma_frames, np.random.default_rng(p.seed))
+        batches = max(1, p.frames_per_epoch // (p.batch_size * p.window_frames))
+        log = train(net, sampler, p.epochs, batches, p.batch_size, p.learning_rate, p.curriculum_epochs,
+                    desc=f"train {self.info.name}")
+        self.net_, self.layout_, self.constant_ = net, layout, constant
+        self.mean_, self.std_, self.loss_log_ = mean, std, np.array(log)
+        self.skeleton_signature_ = skeleton.signature()
+        return self
+
+    # -- fitted state ---------------------------------------------------------------
+    def save(self, folder: str | Path, extra_manifest: Mapping | None = None) -> Path:
+        """Save as :meth:`Engine.save`, with the loss of every epoch in the manifest."""
+        self.require_fitted()
+        log = [round(float(x), 5) for x in self.loss_log_]
+        return super().save(folder, {**(extra_manifest or {}), "loss_per_epoch": log})
+
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        from engines.torch_support import module_arrays
+
+        return {
+            **module_arrays(self.net_, "net."),
+            "image.mean": self.mean_.astype(np.float32), "image.std": self.std_.astype(np.float32),
+            "layout.joints": np.array(self.layout_.joints), "layout.source": np.array(self.layout_.source),
+            "layout.parents": np.array(self.layout_.parents), "constant_joints": np.array(self.constant_),
+            "training.loss_per_epoch": self.loss_log_.astype(np.float32),
+        }
+
+    def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
+        from engines.torch_support import load_module_arrays
+
+        saved = dict(manifest.get("params", {}))
+        saved.update({k: getattr(self.params, k) for k in INFERENCE_PARAMS})
+        try:
+            self.params = self.Params(**saved)
+        except TypeError as err:
+            raise EngineError(f"engine {self.info.name!r}: weights saved with unknown parameters ({err})") from None
+        self.layout_ = Layout(tuple(int(j) for j in arrays["layout.joints"]),
+                              tuple(int(j) for j in arrays["layout.source"]),
+                              tuple(int(j) for j in arrays["layout.parents"]))
+        self.net_ = self.build_network(self.layout_.n_rows)
+        load_module_arrays(self.net_, arrays, "net.")
+        self.net_.eval()
+        self.mean_ = arrays["image.mean"].astype(float)
+        self.std_ = arrays["image.std"].astype(float)
+        self.constant_ = arrays["constant_joints"].astype(int)
+        self.loss_log_ = arrays["training.loss_per_epoch"].astype(float)
+
+    # -- cleaning -------------------------------------------------------------------
+    def complete(self, image: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """The network's completion (F, H) of a raw image (F, H) known where ``mask``."""
+        import torch
+
+        from engines.torch_support import use_threads
+
+        from .training import network_input
+
+        use_threads()
+        F = image.shape[0]
+        frames = -(-F // self.net_.time_multiple) * self.net_.time_multiple
+        padded, m = pad_time(image, mask, frames)
+        x = network_input(((padded - self.mean_) / self.std_)[None], m[None])
+        with torch.inference_mode():
+            y = self.net_(x)[0].numpy().T
+        return y[:F] * self.std_ + self.mean_
+
+    def clean(self, observation: Observation, /, *, constraints: Constraints | None = None) -> CleanResult:
+        """Fill the gaps of (and denoise) ``observation``; ``constraints`` maps a joint index
+        to (frames (n,), world positions (n, 3) in file units) that guide the network."""
+        self.require_fitted()
+        skeleton = observation.skeleton
+        self.check_skeleton(skeleton)
+        layout = self.layout_
+        bridged = bridge_gaps(observation)
+        P, R = forward_kinematics(skeleton, bridged[:, :3], bridged[:, 3:].reshape(observation.n_frames, -1, 3))
+        theta = heading(R[:, 0])
+        ground = P[:, 0] * np.array([1.0, 0.0, 1.0])
+        observed = observation.observed.copy()
+        observed[:, self.constant_] = True
+        known = known_positions(observed, layout.parents)
+        image, mask = encode(layout, P, theta), image_mask(layout, known)
+        out = self.complete(image, mask)
+        ground, theta = trajectory(out, known[:, 0], ground, theta)
+        exact = mask.copy() if self.params.keep_observed else np.zeros_like(mask)
+        if constraints:  # a second pass, on the first one's trajectory
+            image, mask, constrained = self._constrain(image, mask, constraints, ground, theta)
+            exact |= constrained
+            out = self.complete(image, mask)
+        raw = decode(layout, out, ground, theta)
+        target = raw
+        if exact.any():  # met exactly; the miss there blended in from the other known entries
+            out = out + interpolate_gaps(np.where(exact, image - out, 0.0), mask)
+            target = decode(layout, out, ground, theta)
+        ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
+        root, angles = inverse_kinematics(skeleton, target, ref)
+        channels = rewrap_angles(np.concatenate([root, angles.reshape(observation.n_frames, -1)], axis=1), observation)
+        if self.params.keep_observed:
+            given = channel_mask(observation.observed)
+            channels[given] = observation.motion.channels[given]
+        return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw})
+
+    def _constrain(self, image: np.ndarray, mask: np.ndarray, constraints: Constraints, ground: np.ndarray,
+                   theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Image, mask and the constrained entries (F, H), with the constrained positions
+        entered as known entries in the body frame of the trajectory (ground (F, 3),
+        theta (F,))."""
+        image, mask, constrained = image.copy(), mask.copy(), np.zeros_like(mask)
+        for joint, (frames, positions) in constraints.items():
+            j = self.layout_.source[joint] if 0 <= joint < self.layout_.n_joints else -1
+            if j <= 0:
+                raise EngineError(f"engine {self.info.name!r}: cannot constrain joint {joint}; give a non-root "
+                                  f"joint index below {self.layout_.n_joints}")
+            frames = np.asarray(frames, int)
+            positions = np.asarray(positions, float).reshape(len(frames), 3)
+            Rt = np.swapaxes(rot_y(theta[frames]), -1, -2)
+            rows = self.layout_.rows(j)
+            image[frames, rows] = np.einsum("fij,fj->fi", Rt, positions - ground[frames])
+            constrained[frames, rows] = True
+        return image, mask | constrained, constrained

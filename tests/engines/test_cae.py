@@ -1,0 +1,175 @@
+"""``cae``, ``cae-vanilla`` and ``holden``: the motion image, inference with the committed
+weights, keep_observed, constraints, skeleton checks, fitting, saving and loading."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from workbench import metrics, registry
+from workbench.core.kinematics import forward_kinematics
+from workbench.core.motion import Observation, channel_mask
+from workbench.corruption import parse_corruption
+from workbench.data import select
+from workbench.engine import EngineError, NotFittedError
+
+from engines.cae import CAE, Holden
+from engines.cae.representation import (Layout, decode, encode, heading, integrate, known_positions, mirror_rows,
+                                        pad_time)
+
+torch.set_num_threads(1)
+NAMES = ("cae", "cae-vanilla", "holden")
+
+
+@pytest.fixture(scope="module")
+def test_clip(clips):
+    """A held-out CMU walk (35_31, 421 frames)."""
+    return next(c for c in clips if c.id == "cmu/walk/35_31").load()
+
+
+@pytest.fixture(scope="module")
+def trained():
+    return {name: registry.create(name) for name in NAMES}
+
+
+@pytest.fixture(scope="module")
+def tiny_fit(clips):
+    """A cae fitted for one short epoch on two short training clips."""
+    motions = [c.load().slice(0, 200) for c in select(clips, "train", dataset="cmu")[:2]]
+    params = CAE.Params(epochs=1, frames_per_epoch=512, window_frames=64, batch_size=4, time_scale_pct=0.0)
+    return CAE(params).fit(motions), motions
+
+
+def test_image_round_trip(walk):
+    """Positions -> image -> positions, given the first frame's root, is exact."""
+    layout = Layout.from_skeleton(walk.skeleton)
+    P, R = forward_kinematics(walk.skeleton, walk.root_positions, walk.angles_deg)
+    theta = heading(R[:, 0])
+    image = encode(layout, P, theta)
+    assert image.shape == (walk.n_frames, 64) and len(layout.joints) == 20
+    ground, turn = integrate(image, P[0, 0] * [1, 0, 1], theta[0])
+    np.testing.assert_allclose(decode(layout, image, ground, turn), P, atol=1e-9)
+
+
+def test_image_is_heading_invariant_and_mirrors(walk):
+    layout = Layout.from_skeleton(walk.skeleton)
+    P, R = forward_kinematics(walk.skeleton, walk.root_positions, walk.angles_deg)
+    turned = np.einsum("ij,fkj->fki", np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0.0]]), P)  # 90 deg about Y
+    image = encode(layout, P, heading(R[:, 0]))
+    np.testing.assert_allclose(encode(layout, turned, heading(R[:, 0]) + np.pi / 2), image, atol=1e-9)
+    perm, sign = mirror_rows(layout, walk.skeleton.names)
+    np.testing.assert_array_equal((image[:, perm] * sign)[:, perm] * sign, image)
+    left, right = walk.skeleton.index("LeftHand"), walk.skeleton.index("RightHand")
+    assert perm[layout.rows(left).start] == layout.rows(right).start
+
+
+def test_known_positions_follow_the_tree(walk):
+    sk = walk.skeleton
+    observed = np.ones((2, sk.n_joints), bool)
+    observed[0, sk.index("LeftForeArm")] = False
+    observed[1, 0] = False
+    known = known_positions(observed, sk.parents)
+    assert known[0, sk.index("LeftForeArm")] and not known[0, sk.index("LeftHand")]
+    assert known[0, sk.index("RightHand")] and not known[1].any()
+
+
+def test_time_padding_reflects_and_turns_velocities_round():
+    image = np.arange(5 * 64, dtype=float).reshape(5, 64)
+    padded, mask = pad_time(image, image > 10, 9)
+    assert padded.shape == (9, 64)
+    np.testing.assert_array_equal(padded[5, :10], image[3, :10])
+    np.testing.assert_array_equal(padded[5, -3:], -image[3, -3:])
+    np.testing.assert_array_equal(mask[5], image[3] > 10)
+
+
+@pytest.mark.parametrize("frames", [1, 37, 101, 257])
+def test_any_length(trained, test_clip, frames):
+    motion = test_clip.slice(0, frames)
+    for engine in trained.values():
+        out = engine.clean(Observation(motion)).motion
+        assert out.n_frames == frames and np.isfinite(out.channels).all()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_gap_filling_with_committed_weights(trained, test_clip, name):
+    obs = parse_corruption("block:60+joints:2").apply(test_clip, seed=3)
+    res = trained[name].clean(obs)
+    assert np.isfinite(res.motion.channels).all()
+    assert res.diagnostics["raw_positions"].shape == (test_clip.n_frames, 31, 3)
+    assert trained[name].spec == name, "committed weights must be trained with the default parameters"
+
+
+def test_quality_beats_lerp_on_a_60_frame_gap(trained, test_clip):
+    errors = {"cae": [], "lerp": []}
+    lerp = registry.create("lerp")
+    for seed in range(3):
+        obs = parse_corruption("block:60").apply(test_clip, seed=seed)
+        for name, engine in (("cae", trained["cae"]), ("lerp", lerp)):
+            errors[name].append(metrics.gap_mpjpe_cm(test_clip, engine.clean(obs).motion, obs.observed))
+    assert np.mean(errors["cae"]) < 0.9 * np.mean(errors["lerp"]), errors
+
+
+def test_keep_observed_returns_observed_entries_exactly(test_clip):
+    engine = registry.create("cae:keep_observed=true")
+    obs = parse_corruption("block:40+drop:0.1").apply(test_clip, seed=1)
+    out = engine.clean(obs).motion.channels
+    given = channel_mask(obs.observed)
+    np.testing.assert_array_equal(out[given], obs.motion.channels[given])
+    assert np.isfinite(out).all()
+
+
+def test_constraints_pull_the_gap_towards_them(test_clip):
+    """Tertiary blending: inside a 60-frame gap the right forearm, hand and finger are
+    given over 15 frames where they were 40 frames later (in the body frame)."""
+    sk = test_clip.skeleton
+    layout = Layout.from_skeleton(sk)
+    P, R = forward_kinematics(sk, test_clip.root_positions, test_clip.angles_deg)
+    theta = heading(R[:, 0])
+    image = encode(layout, P, theta)
+    frames = np.arange(120, 135)
+    joints = [sk.index(n) for n in ("RightForeArm", "RightHand", "RightHandIndex1")]
+    for j in joints:
+        image[frames, layout.rows(j)] = image[frames + 40, layout.rows(j)]
+    target = decode(layout, image, P[:, 0] * [1, 0, 1], theta)[frames][:, joints]
+    constraints = {j: (frames, target[:, i]) for i, j in enumerate(joints)}
+    obs = parse_corruption("block:60,100").apply(test_clip, seed=0)
+
+    def error_cm(engine, **kw):
+        positions = engine.clean(obs, **kw).motion.positions[frames][:, joints]
+        return np.linalg.norm(positions - target, axis=-1).mean() * sk.unit_cm
+
+    for spec, bound in (("cae", 0.2), ("cae:keep_observed=true", 0.1)):
+        engine = registry.create(spec)
+        free, held = error_cm(engine), error_cm(engine, constraints=constraints)
+        assert free > 10.0 and held < bound * free, (spec, free, held)
+    with pytest.raises(EngineError, match="constrain"):
+        engine.clean(obs, constraints={0: (frames, P[frames, 0])})
+
+
+def test_refuses_another_skeleton(trained, kick):
+    with pytest.raises(EngineError, match="skeleton"):
+        trained["cae"].clean(Observation(kick.slice(0, 50)))
+
+
+@pytest.mark.parametrize("cls", [CAE, Holden])
+def test_not_fitted(cls, walk):
+    with pytest.raises(NotFittedError):
+        cls().clean(Observation(walk.slice(0, 40)))
+
+
+def test_fit_save_load_round_trip(tiny_fit, tmp_path, walk):
+    engine, _ = tiny_fit
+    assert engine.loss_log_.shape == (1,) and np.isfinite(engine.loss_log_).all()
+    engine.save(tmp_path)
+    again = CAE().load(tmp_path)
+    assert again.spec == engine.spec
+    obs = parse_corruption("block:30").apply(walk.slice(0, 120), seed=0)
+    a, b = engine.clean(obs), again.clean(obs)
+    np.testing.assert_array_equal(a.motion.channels, b.motion.channels)
+    np.testing.assert_array_equal(a.diagnostics["raw_positions"], b.diagnostics["raw_positions"])
+
+
+def test_fit_refuses_mixed_skeletons(walk, kick):
+    with pytest.raises(EngineError, match="skeleton"):
+        CAE(CAE.Params(epochs=1)).fit([walk, kick])
