@@ -40,17 +40,34 @@ def test_mpjpe_is_root_aligned_and_in_cm(walk):
     del est
 
 
-def test_gap_mpjpe_counts_missing_entries_only(walk):
+def test_gap_mpjpe_counts_the_positions_that_depend_on_missing_angles(walk):
+    sk = walk.skeleton
     X = walk.channels
-    j = walk.skeleton.index("LeftForeArm")
+    j = sk.index("LeftForeArm")
     X[:, 3 + 3 * j] += 20.0
     est = walk.with_channels(X)
-    observed = np.ones((walk.n_frames, walk.skeleton.n_joints), bool)
+    observed = np.ones((walk.n_frames, sk.n_joints), bool)
     assert np.isnan(metrics.gap_mpjpe_cm(walk, est, observed))
-    observed[10:20, walk.skeleton.index("LeftHand")] = False
+    observed[10:20, j] = False  # the forearm's angles move the hand and the fingers, not the forearm
+    below = [k for k in range(sk.n_joints) if k != j and j in _ancestors(sk.parents, k)]
+    assert [sk.names[k] for k in below] == ["LeftHand", "LeftFingerBase", "LeftHandIndex1", "LThumb"]
     gap = metrics.gap_mpjpe_cm(walk, est, observed)
-    assert gap == pytest.approx(metrics.joint_position_error_cm(walk, est)[10:20, walk.skeleton.index("LeftHand")].mean())
+    assert gap == pytest.approx(metrics.joint_position_error_cm(walk, est)[10:20][:, below].mean())
     assert gap > 0
+    observed[:] = True
+    observed[5, 0] = False  # the root missing: every position in that frame depends on it
+    assert metrics.gap_mpjpe_cm(walk, est, observed) == pytest.approx(metrics.joint_position_error_cm(walk, est)[5].mean())
+    observed[:] = True
+    observed[:, sk.index("LThumb")] = False  # a leaf: no position depends on its angles
+    assert np.isnan(metrics.gap_mpjpe_cm(walk, est, observed))
+
+
+def _ancestors(parents, k):
+    out = []
+    while parents[k] >= 0:
+        k = parents[k]
+        out.append(k)
+    return out
 
 
 def test_bone_lengths_and_jitter(walk):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core.motion import Motion, angle_columns
+from .core.motion import Motion, angle_columns, position_unknown
 
 
 def _check(truth: Motion, estimate: Motion) -> None:
@@ -54,12 +54,16 @@ def mpjpe_cm(truth: Motion, estimate: Motion) -> float:
 
 
 def gap_mpjpe_cm(truth: Motion, estimate: Motion, observed: np.ndarray) -> float:
-    """Root-aligned mean joint position error over the missing entries only (observed
-    (F, J) False), in cm; NaN when nothing is missing."""
-    missing = ~np.asarray(observed, bool)
-    if not missing.any():
+    """Root-aligned mean joint position error, in cm, over the positions that depend on
+    missing data (observed (F, J) False): each (frame, joint) whose root or ancestor is
+    missing there (:func:`~workbench.core.motion.position_unknown`). A joint's missing
+    angles move its children, so those are the positions that test a fill. NaN when
+    nothing is missing or no position depends on what is (a missing leaf joint: see
+    ``rms_angle_deg``)."""
+    unknown = position_unknown(observed, truth.skeleton.parents)
+    if not unknown.any():
         return float("nan")
-    return float(np.mean(joint_position_error_cm(truth, estimate)[missing]))
+    return float(np.mean(joint_position_error_cm(truth, estimate)[unknown]))
 
 
 def bone_lengths(positions: np.ndarray, parents) -> np.ndarray:

@@ -129,6 +129,19 @@ def channel_mask(observed: np.ndarray) -> np.ndarray:
     return np.concatenate([np.repeat(observed[:, :1], 3, axis=1), np.repeat(observed, 3, axis=1)], axis=1)
 
 
+def position_unknown(observed: np.ndarray, parents) -> np.ndarray:
+    """(..., J) whether a joint's position depends on missing data, given an observed
+    mask (..., J) and the skeleton's ``parents``: the root or a proper ancestor of the
+    joint is missing. (A joint's own angles move its children, not the joint.)"""
+    observed = np.asarray(observed, bool)
+    chain = np.empty_like(observed)  # the joint and all its ancestors observed
+    unknown = np.empty_like(observed)
+    for j, p in enumerate(parents):
+        unknown[..., j] = ~observed[..., 0] if p < 0 else ~chain[..., p]
+        chain[..., j] = observed[..., j] & (True if p < 0 else chain[..., p])
+    return unknown
+
+
 def angle_columns(skeleton: Skeleton) -> np.ndarray:
     """Column indices into the channel matrix of the scored joint-angle channels: the
     rotation channels of every joint but the root."""
