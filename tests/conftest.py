@@ -36,3 +36,9 @@ def walk(data_root):
 def kick(data_root):
     """cmu-daz kick 10_03 (43 joints), reference frame dropped."""
     return read_bvh(data_root / "cmu-daz" / "kick" / "10_03.bvh").slice(1)
+
+
+@pytest.fixture(scope="session")
+def held_out_walk(clips):
+    """CMU walk 35_31 of the test split (subject 35, held out of training): 421 frames."""
+    return next(c for c in clips if c.id == "cmu/walk/35_31").load()

@@ -126,3 +126,13 @@ def retime(X: np.ndarray, speed: float) -> np.ndarray:
     i = np.minimum(np.floor(t).astype(int), F - 2)
     w = (t - i).reshape((-1,) + (1,) * (X.ndim - 1))
     return X[i] * (1 - w) + X[i + 1] * w
+
+
+def gap_distance(missing: np.ndarray) -> np.ndarray:
+    """(F, C) frames from each sample to the nearest observed sample of its column, for a
+    missing mask (F, C); 0 where observed, inf in a column with no observed sample."""
+    missing = np.asarray(missing, bool)
+    frame = np.broadcast_to(np.arange(missing.shape[0], dtype=float)[:, None], missing.shape)
+    last = np.maximum.accumulate(np.where(missing, -np.inf, frame), axis=0)
+    following = np.minimum.accumulate(np.where(missing, np.inf, frame)[::-1], axis=0)[::-1]
+    return np.minimum(frame - last, following - frame)

@@ -1,0 +1,208 @@
+"""What EBF, BF, NN and EBD share: windowed networks over per-frame features, trained
+with one loop, saved as plain arrays, run offline on all windows of a clip at once.
+
+Every output frame sees exactly its own window of 2 x 15 + 1 frames (at ``STRIDE``
+frames apart), edge frames repeated where the window runs off the clip; this is what
+lets the streaming API reproduce offline results exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar, Mapping, Sequence
+
+import numpy as np
+
+from workbench.core.channels import retime, unwrap_deg
+from workbench.core.motion import Motion, Observation
+from workbench.engine import Engine, EngineError
+
+from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
+
+#: field metadata marking parameters that change the network (and so the weights folder)
+ARCH = {"architecture": True}
+#: windows evaluated per forward pass at inference (bounds memory)
+INFERENCE_CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class TrainingParams:
+    """Training parameters common to the four engines (they do not change the network)."""
+
+    #: passes over the training data; each pass draws fresh noise on every clip
+    epochs: int = 20
+    #: seeds network initialisation, noise and sampling
+    seed: int = 0
+    #: Adam's initial learning rate (cosine-decayed to 2 % of it)
+    learning_rate: float = 2e-3
+    #: windows per optimisation step
+    batch_windows: int = 256
+    #: dropout probability on the B-LSTM's inputs during training (paper: 0.5)
+    dropout: float = 0.5
+    #: augmentation: each training copy is played at a speed drawn log-uniformly
+    #: between 1 / (1 + p/100) and 1 + p/100 (our train subjects move more slowly,
+    #: relative to the noise, than the test subjects; see the issue note)
+    time_scale_pct: float = 50.0
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.batch_windows < 1 or not self.learning_rate > 0 or self.seed < 0:
+            raise ValueError("epochs and batch_windows must be >= 1, learning_rate > 0 and seed >= 0")
+        if self.time_scale_pct < 0:
+            raise ValueError(f"time_scale_pct must be >= 0, got {self.time_scale_pct}")
+        if not 0 <= self.dropout < 1:
+            raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
+
+
+def architecture(params: Any) -> dict[str, Any]:
+    """The parameters marked ARCH, by name."""
+    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.metadata.get("architecture")}
+
+
+class WindowEngine(Engine):
+    """Base of the windowed network engines. Subclasses set ``info``, ``Params`` and the
+    class constants, and implement :meth:`_build_net`, :meth:`_predict` and
+    :meth:`_training_pairs`."""
+
+    #: frames between window samples (EBD: 4)
+    STRIDE: ClassVar[int] = 1
+    #: consecutive window centres per training run (see training.py)
+    RUN: ClassVar[int] = 8
+    #: network input includes the observed mask of the angle channels
+    WITH_MASK: ClassVar[bool] = False
+    #: the training loss covers missing entries only
+    MISSING_ONLY: ClassVar[bool] = False
+    #: the training loss measures errors in training stds of each channel (else degrees)
+    ERRORS_IN_STDS: ClassVar[bool] = False
+    #: the training loss is the mean per-frame RMS error (else the mean squared error)
+    FRAME_RMS_LOSS: ClassVar[bool] = True
+
+    net_ = None
+    norm_: Normaliser | None = None
+    loss_history_: np.ndarray | None = None
+
+    # -- weights --------------------------------------------------------------------
+    @property
+    def variant(self) -> str:
+        """Name of this network variant: the engine's name plus every architecture
+        parameter that differs from its default (``ebf-bias``, ``ebf-lstm_units96``)."""
+        default = self.Params()
+        parts = [self.info.name]
+        for name, value in architecture(self.params).items():
+            if value != getattr(default, name):
+                parts.append(name if value is True else f"{name}{value}")
+        return "-".join(parts)
+
+    def default_weights_dir(self) -> Path:
+        """``engines/ebf/weights/<variant>/``: each network variant has its own weights."""
+        return Path(__file__).resolve().parent / "weights" / self.variant
+
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        from engines.torch_support import module_arrays
+
+        return {**module_arrays(self.net_, "net."), "norm_mean": self.norm_.mean, "norm_std": self.norm_.std,
+                "loss_history": np.asarray(self.loss_history_, np.float32)}
+
+    def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
+        from engines.torch_support import load_module_arrays
+
+        saved = {k: v for k, v in (manifest.get("params") or {}).items() if k in architecture(self.params)}
+        if saved != architecture(self.params):
+            raise EngineError(f"engine {self.info.name!r}: these weights were trained with {saved}, "
+                              f"not {architecture(self.params)}; train this variant first")
+        self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float))
+        net = self._build_net(self.norm_.mean.size - 3)
+        load_module_arrays(net, arrays, "net.")
+        self.net_ = net.eval()
+        self.loss_history_ = np.asarray(arrays.get("loss_history", []), float)
+
+    # -- subclass hooks -------------------------------------------------------------
+    def _build_net(self, n_channels: int):
+        """The untrained network for ``n_channels`` joint-angle channels."""
+        raise NotImplementedError
+
+    def _predict(self, net, windows, values, valid) -> tuple[Any, dict[str, Any]]:
+        """Cleaned angles (B, C) in degrees of windows of codes (B, L, E), given the
+        window's angle values (B, L, C) and ``valid`` (B, L); plus named (B, C)
+        diagnostics."""
+        raise NotImplementedError
+
+    def _training_pairs(self, motions: Sequence[Motion], epoch: int) -> list[tuple[Observation, Motion]]:
+        """Corrupted observations of the training motions for one epoch, with their truth."""
+        raise NotImplementedError
+
+    # -- shared work ----------------------------------------------------------------
+    def _frame_data(self, observation: Observation) -> FrameData:
+        return frame_data(observation, Layout.of(observation.skeleton), self.norm_, self.WITH_MASK)
+
+    def _ready(self, observation: Observation) -> None:
+        self.require_fitted()
+        self.check_skeleton(observation.skeleton)
+
+    def _run(self, data: FrameData, centres: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Run the network on the windows around ``centres`` (N,) of a clip: cleaned
+        angles (N, C) in degrees and diagnostics (N, C), all windows batched."""
+        import torch
+
+        preds, diags = [], []
+        with torch.inference_mode():
+            codes = self.net_.encode(torch.from_numpy(data.inputs))
+            values = torch.from_numpy(data.values)  # float64: filters in double precision
+            for i in range(0, centres.size, INFERENCE_CHUNK):
+                idx, valid = window_index(centres[i:i + INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
+                idx_t = torch.from_numpy(idx)
+                pred, diag = self._predict(self.net_, codes[idx_t], values[idx_t], torch.from_numpy(valid))
+                preds.append(pred.double().numpy())
+                diags.append({k: v.double().numpy() for k, v in diag.items()})
+        if not preds:
+            return np.zeros((0, data.values.shape[1])), {}
+        return np.concatenate(preds), {k: np.concatenate([d[k] for d in diags]) for k in diags[0]}
+
+    def fit(self, motions: Sequence[Motion], /) -> "WindowEngine":
+        """Train on clean motions of one skeleton (fresh corruption every epoch);
+        progress bar and per-epoch losses on stderr."""
+        from engines.torch_support import seed_everything, use_threads
+
+        from .training import Corpus, train
+
+        motions = list(motions)
+        if not motions:
+            raise EngineError(f"engine {self.info.name!r}: no training motions")
+        signature = motions[0].skeleton.signature()
+        if any(m.skeleton.signature() != signature for m in motions):
+            raise EngineError(f"engine {self.info.name!r}: training motions must share one skeleton layout")
+        use_threads()
+        seed_everything(self.params.seed)
+        layout = Layout.of(motions[0].skeleton)
+        self.norm_ = Normaliser.fit(motions, layout)
+        net = self._build_net(layout.n_channels)
+
+        def truth(m: Motion) -> np.ndarray:
+            return anchor_turns(unwrap_deg(m.channels[:, layout.columns]), self.norm_.angle_mean)
+
+        def make_corpus(epoch: int) -> Corpus:
+            return Corpus.build([(self._frame_data(obs), truth(m)) for obs, m in self._training_pairs(motions, epoch)])
+
+        p = self.params
+        self.loss_history_ = np.array(train(
+            net, make_corpus, self._predict, epochs=p.epochs, learning_rate=p.learning_rate,
+            batch_windows=p.batch_windows, run=self.RUN, radius=RADIUS, stride=self.STRIDE, seed=p.seed,
+            missing_only=self.MISSING_ONLY, error_unit=self.norm_.angle_std if self.ERRORS_IN_STDS else None,
+            frame_rms=self.FRAME_RMS_LOSS, desc=self.variant))
+        self.net_ = net.eval()
+        self.skeleton_signature_ = signature
+        return self
+
+    def retimed(self, motion: Motion, rng: np.random.Generator) -> Motion:
+        """``motion`` played at a random speed (the ``time_scale_pct`` augmentation)."""
+        p = self.params.time_scale_pct
+        if p <= 0:
+            return motion
+        X = motion.channels
+        X[:, 3:] = unwrap_deg(X[:, 3:])
+        return motion.with_channels(retime(X, float(np.exp(rng.uniform(-1.0, 1.0) * np.log1p(p / 100)))))
+
+    def epoch_seeds(self, epoch: int, n: int) -> np.ndarray:
+        """``n`` corruption seeds for one epoch, from the engine's seed."""
+        return np.random.default_rng([self.params.seed, 2, epoch]).integers(0, 2**31 - 1, size=n)

@@ -1,0 +1,151 @@
+"""Per-frame network inputs and window geometry shared by EBF, EBD, BF and NN (numpy only).
+
+Units: angles in degrees, root angular velocity in degrees per second, time in frames.
+``C`` is the number of joint-angle channels (``workbench.core.motion.angle_columns``: the
+rotation channels of every joint but the root); the networks see those ``C`` channels,
+unwrapped and normalised, plus the root's 3 angular velocities.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.rotations import euler_to_matrix, matrix_to_quaternion
+from workbench.core.skeleton import Skeleton
+
+from ..identity import bridge_gaps
+
+#: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
+RADIUS = 15
+#: frames over which the root's angular velocity is measured (1/15 s at 120 fps)
+VELOCITY_BASELINE = 8
+#: smallest per-feature std used for normalisation (degrees, or degrees per second)
+STD_FLOOR = 1.0
+
+
+def root_angular_velocity_dps(root_angles_deg: np.ndarray, order: str, fps: float,
+                              baseline: int = VELOCITY_BASELINE) -> np.ndarray:
+    """(F, 3) angular velocity of the root in its own frame, degrees per second, averaged
+    over the last ``baseline`` frames: the rotation vector of ``R[s]^T R[t]`` divided by
+    the time from s = max(0, t - baseline) to t (0 at frame 0). Invariant to heading; the
+    baseline keeps frame-to-frame jitter of a noisy root (spatial noise) from dominating."""
+    R = euler_to_matrix(np.asarray(root_angles_deg, float), order)
+    t = np.arange(R.shape[0])
+    s = np.maximum(t - baseline, 0)
+    q = matrix_to_quaternion(np.einsum("fji,fjk->fik", R[s], R))  # w >= 0
+    norm = np.linalg.norm(q[:, 1:], axis=1)
+    angle = 2.0 * np.arctan2(norm, q[:, 0])
+    scale = np.where(norm > 1e-12, angle / np.maximum(norm, 1e-12), 2.0)
+    return np.rad2deg(q[:, 1:] * scale[:, None]) * fps / np.maximum(t - s, 1)[:, None]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where the networks' channels live in a skeleton's channel matrix (F, 3 + 3J)."""
+
+    columns: np.ndarray  # (C,) angle columns
+    root_order: str
+
+    @classmethod
+    def of(cls, skeleton: Skeleton) -> "Layout":
+        return cls(angle_columns(skeleton), skeleton.rotation_order(0))
+
+    @property
+    def n_channels(self) -> int:
+        return int(self.columns.size)
+
+    def root_velocity(self, X: np.ndarray, fps: float) -> np.ndarray:
+        """(F, 3) root angular velocity (deg/s) of a channel matrix X (F, D)."""
+        return root_angular_velocity_dps(X[:, 3:6], self.root_order, fps)
+
+
+def anchor_turns(angles_deg: np.ndarray, reference_deg: np.ndarray) -> np.ndarray:
+    """Shift each unwrapped column of ``angles_deg`` (F, C) by the whole turns that bring
+    its first frame nearest to ``reference_deg`` (C,), so a channel reads alike in every
+    clip (and in a stream, which knows the first frame only)."""
+    return angles_deg + 360.0 * np.round((reference_deg - angles_deg[:1]) / 360.0)
+
+
+def circular_mean_deg(angles_deg: np.ndarray) -> np.ndarray:
+    """(C,) circular mean of the columns of ``angles_deg`` (N, C), degrees."""
+    a = np.deg2rad(angles_deg)
+    return np.rad2deg(np.arctan2(np.sin(a).mean(axis=0), np.cos(a).mean(axis=0)))
+
+
+@dataclass
+class Normaliser:
+    """Per-feature mean and std (floored at STD_FLOOR) of the clean training frames:
+    C angle channels (degrees) then 3 root angular velocities (deg/s)."""
+
+    mean: np.ndarray
+    std: np.ndarray
+
+    @classmethod
+    def fit(cls, motions: list[Motion], layout: Layout) -> "Normaliser":
+        X = [m.channels for m in motions]
+        reference = circular_mean_deg(np.concatenate([x[:, layout.columns] for x in X]))
+        feats = []
+        for m, x in zip(motions, X):
+            x[:, 3:] = np.unwrap(x[:, 3:], period=360.0, axis=0)
+            ang = anchor_turns(x[:, layout.columns], reference)
+            feats.append(np.concatenate([ang, layout.root_velocity(x, m.fps)], axis=1))
+        F = np.concatenate(feats)
+        return cls(F.mean(axis=0), np.maximum(F.std(axis=0), STD_FLOOR))
+
+    @property
+    def angle_mean(self) -> np.ndarray:
+        return self.mean[:-3]
+
+    @property
+    def angle_std(self) -> np.ndarray:
+        return self.std[:-3]
+
+    def __call__(self, features: np.ndarray) -> np.ndarray:
+        return (features - self.mean) / self.std
+
+
+@dataclass
+class FrameData:
+    """An observation made ready for a network. X: (F, D) channel matrix, gaps bridged
+    linearly, angles unwrapped and anchored; values: (F, C) its angle channels (degrees);
+    inputs: (F, n_in) normalised network inputs; missing: (F, C) missing angle samples."""
+
+    X: np.ndarray
+    values: np.ndarray
+    inputs: np.ndarray
+    missing: np.ndarray
+
+    @property
+    def n_frames(self) -> int:
+        return self.X.shape[0]
+
+
+def frame_data(observation: Observation, layout: Layout, norm: Normaliser, with_mask: bool) -> FrameData:
+    """Network inputs of an observation: normalised angle channels and root angular
+    velocity, plus (``with_mask``, EBD) the observed mask of the angle channels (0/1)."""
+    X = bridge_gaps(observation)
+    X[:, layout.columns] = anchor_turns(X[:, layout.columns], norm.angle_mean)
+    values = X[:, layout.columns]
+    missing = ~channel_mask(observation.observed)[:, layout.columns]
+    parts = [norm(np.concatenate([values, layout.root_velocity(X, observation.motion.fps)], axis=1))]
+    if with_mask:
+        parts.append((~missing).astype(float))
+    return FrameData(X, values, np.concatenate(parts, axis=1).astype(np.float32), missing)
+
+
+def window_offsets(radius: int = RADIUS, stride: int = 1) -> np.ndarray:
+    """(2 radius + 1,) frame offsets of a window's frames from its centre frame."""
+    return stride * np.arange(-radius, radius + 1)
+
+
+def window_index(centres: np.ndarray, n_frames: int, radius: int = RADIUS, stride: int = 1
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Frame indices (N, L) of the windows around ``centres`` (N,), clamped into the clip
+    (edge frames repeat: the padding used for network inputs), and ``valid`` (N, L):
+    the window frame exists (only those enter a filter)."""
+    idx = np.asarray(centres)[:, None] + window_offsets(radius, stride)[None, :]
+    valid = (idx >= 0) & (idx < n_frames)
+    return np.clip(idx, 0, n_frames - 1), valid

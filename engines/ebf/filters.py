@@ -1,0 +1,207 @@
+"""``ebf``: Encoder-Bidirectional-Filter (Mall et al. 2017 §3), and its ablations ``bf``
+(no encoder) and ``nn`` (feed-forward over the window).
+
+Per frame the network sees the C joint-angle channels (the rotation channels of every
+joint but the root; unwrapped, normalised with the training mean and std) and the root's
+3 angular velocities (its own frame, deg/s over the last 1/15 s: heading-invariant
+context, not output).
+EBF: 4 tanh layers encode each frame to 64 numbers; 2 bidirectional LSTM layers
+(``lstm_units`` per direction, input dropout 0.5) read the 31-frame window around each
+output frame (15 back, 15 ahead); 4 fully connected layers (tanh, then exp) give one
+Gaussian std in frames per channel. The cleaned channel is the Gaussian-weighted
+average of the noisy channel over the window (weights renormalised over the frames
+that exist at the clip's ends). Root channels pass through unchanged; gaps are bridged
+linearly first (use ``ebd>ebf`` for data with gaps).
+
+Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtracted
+(trained on angular, constant-bias and sinusoidal-bias noise); ``free=true`` predicts
+31 free filter weights per channel (softmax) instead of a Gaussian. Each variant has its
+own weights folder, ``weights/ebf``, ``weights/ebf-bias``, ``weights/ebf-free``, ...
+
+Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J), 0 on the channels
+passed through unchanged (root position and rotation): ``filter_sigma_frames``, the
+filter's std in frames (for free filters, the std of the weights over the window), and
+with ``bias=true`` ``bias`` in degrees (already subtracted).
+
+Training: the train split, every clip every epoch (played at a random speed
+within ±50 %) with fresh angular noise of 0.1, 0.5 and
+0.9 channel stds; loss: the per-frame RMS of the error (L2 norm in degrees) between
+filtered and clean angles, averaged over frames; Adam.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from workbench.core.motion import Motion, Observation, angle_columns
+from workbench.corruption import parse_corruption
+from workbench.engine import CleanResult, EngineInfo
+
+from ..identity import rewrap_angles
+from .base import ARCH, WindowEngine, TrainingParams
+from .features import RADIUS
+
+#: training corruptions: every epoch each clip gets one copy per slot, its spec drawn
+#: from the slot. Angular noise of 0.1, 0.5 and 0.9 channel stds (Mall et al. §4.1)
+TRAINING_SLOTS = (("angular:0.1",), ("angular:0.5",), ("angular:0.9",))
+#: the bias variant's slots: angular, constant-bias and sinusoidal-bias noise mixed
+BIAS_TRAINING_SLOTS = tuple(tuple(f"{model}:{k}" for model in ("angular", "bias", "sine")) for k in (0.1, 0.5, 0.9))
+#: filter width the network starts from, frames
+INITIAL_SIGMA_FRAMES = 4.0
+
+CITATION = "Mall, Lal, Agrawal, Hajnik, Nguyen, Carr, Kavan, Vouga 2017, Deep recurrent mocap cleaning, §3"
+
+
+class FilterEngine(WindowEngine):
+    """Engines predicting an adaptive filter per channel and frame (EBF, BF, NN)."""
+
+    #: per-frame encoder before the window core
+    ENCODER = True
+    #: B-LSTM core (else 6 fully connected layers over the flattened window)
+    RECURRENT = True
+
+    @property
+    def bias(self) -> bool:
+        return getattr(self.params, "bias", False)
+
+    @property
+    def free(self) -> bool:
+        return getattr(self.params, "free", False)
+
+    def _build_net(self, n_channels: int):
+        import torch
+
+        from .nets import WindowNet
+
+        L, C = 2 * RADIUS + 1, n_channels
+        n_out = (L if self.free else 1) * C + (C if self.bias else 0)
+        net = WindowNet(C + 3, n_out, encoder=self.ENCODER, recurrent=self.RECURRENT,
+                        lstm_units=getattr(self.params, "lstm_units", 0), dropout=self.params.dropout, window=L)
+        with torch.no_grad():  # start from a Gaussian of INITIAL_SIGMA_FRAMES everywhere
+            d = torch.arange(-RADIUS, RADIUS + 1, dtype=torch.float32)
+            start = (-0.5 * d**2 / INITIAL_SIGMA_FRAMES**2).repeat_interleave(C) if self.free else \
+                torch.full((C,), math.log(INITIAL_SIGMA_FRAMES))
+            net.head[-1].bias[: start.numel()] = start
+        return net
+
+    def _predict(self, net, windows, values, valid):
+        import torch
+
+        from .nets import filter_windows, gaussian_logits, offsets_like, sigma_frames, weights_sigma
+
+        B, L, C = values.shape
+        z = net(windows).to(values.dtype)
+        offsets = offsets_like(values)
+        if self.free:
+            out, weights = filter_windows(z[:, : L * C].reshape(B, L, C), values, valid)
+            sigma = weights_sigma(weights, offsets)
+        else:
+            sigma = sigma_frames(z[:, :C])
+            out, _ = filter_windows(gaussian_logits(sigma, offsets), values, valid)
+        diag = {"filter_sigma_frames": sigma}
+        if self.bias:
+            bias = z[:, -C:] * torch.as_tensor(self.norm_.angle_std, dtype=values.dtype)
+            out = out - bias
+            diag["bias"] = bias
+        return out, diag
+
+    def _training_pairs(self, motions: Sequence[Motion], epoch: int) -> list[tuple[Observation, Motion]]:
+        slots = BIAS_TRAINING_SLOTS if self.bias else TRAINING_SLOTS
+        rng = np.random.default_rng([self.params.seed, 3, epoch])
+        seeds = iter(self.epoch_seeds(epoch, len(motions) * len(slots)))
+        pairs = []
+        for m in motions:
+            for slot in slots:
+                clean = self.retimed(m, rng)
+                pairs.append((parse_corruption(slot[rng.integers(len(slot))]).apply(clean, int(next(seeds))), clean))
+        return pairs
+
+    def clean(self, observation: Observation, /) -> CleanResult:
+        """Cleaned motion (gaps bridged linearly, then filtered) and diagnostics (F, D)."""
+        self._ready(observation)
+        data = self._frame_data(observation)
+        pred, diag = self._run(data, np.arange(data.n_frames))
+        cols = angle_columns(observation.skeleton)
+        Y = data.X.copy()
+        Y[:, cols] = pred
+        diagnostics = {}
+        for key, value in diag.items():
+            full = np.zeros_like(Y)
+            full[:, cols] = value
+            diagnostics[key] = full
+        return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation)), diagnostics)
+
+    def stream(self, skeleton, fps: float):
+        """A :class:`~engines.ebf.stream.FilterStream` for takes of ``skeleton`` at
+        ``fps``: push frames (D,) one at a time, get each cleaned frame 15 frames later,
+        identical to offline :meth:`clean`."""
+        from .stream import FilterStream
+
+        return FilterStream(self, skeleton, fps)
+
+
+class EBF(FilterEngine):
+    """Encoder-Bidirectional-Filter: adaptive Gaussian filter per channel and frame."""
+
+    @dataclass(frozen=True)
+    class Params(TrainingParams):
+        #: LSTM units per direction in each of the two B-LSTM layers (paper: 126)
+        lstm_units: int = field(default=64, metadata=ARCH)
+        #: also predict and subtract a per-channel bias (for biased noise)
+        bias: bool = field(default=False, metadata=ARCH)
+        #: free filter shapes (31 softmax weights per channel) instead of Gaussians
+        free: bool = field(default=False, metadata=ARCH)
+
+        def __post_init__(self) -> None:
+            super().__post_init__()
+            if self.lstm_units < 1:
+                raise ValueError("lstm_units must be >= 1")
+
+    info = EngineInfo(
+        name="ebf",
+        summary="Encoder-Bidirectional-Filter: a B-LSTM predicts a Gaussian filter per channel and frame",
+        tasks=frozenset({"denoise"}),
+        trainable=True,
+        citation=CITATION,
+    )
+
+
+class BF(FilterEngine):
+    """Ablation: EBF without the encoder (the B-LSTM reads the frame features directly)."""
+
+    ENCODER = False
+
+    @dataclass(frozen=True)
+    class Params(TrainingParams):
+        #: LSTM units per direction in each of the two B-LSTM layers
+        lstm_units: int = field(default=64, metadata=ARCH)
+
+    info = EngineInfo(
+        name="bf",
+        summary="ablation of EBF without the encoder (B-LSTM on raw frame features, Gaussian filter)",
+        tasks=frozenset({"denoise"}),
+        trainable=True,
+        citation=CITATION.replace("§3", "§4.1 (ablation BF)"),
+    )
+
+
+class NN(FilterEngine):
+    """Ablation: 6 fully connected layers over the whole 31-frame window, no recurrence."""
+
+    RECURRENT = False
+
+    @dataclass(frozen=True)
+    class Params(TrainingParams):
+        epochs: int = 45
+
+    info = EngineInfo(
+        name="nn",
+        summary="ablation of EBF: feed-forward network over the 31-frame window predicts the Gaussian filters",
+        tasks=frozenset({"denoise"}),
+        trainable=True,
+        citation=CITATION.replace("§3", "§4.1 (ablation NN)"),
+    )

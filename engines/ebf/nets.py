@@ -1,0 +1,132 @@
+"""The networks and the adaptive filter (PyTorch), shared by EBF, BF, NN and EBD.
+
+Shapes: B windows, L = 2 radius + 1 frames per window, E code width, C joint-angle
+channels. Angles in degrees, filter widths in frames.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+#: encoder widths after the input: 4 fully connected tanh layers down to a 64-d code
+ENCODER_WIDTHS = (256, 128, 96, 64)
+#: hidden widths of the 4-layer filter head / decoder after the B-LSTM
+HEAD_WIDTHS = (128, 128, 128)
+#: hidden widths of the feed-forward NN ablation (6 fully connected layers in all)
+NN_WIDTHS = (256, 256, 128, 128, 128)
+#: predicted log standard deviations are clamped to this range (0.0025 to 403 frames)
+LOG_SIGMA_RANGE = (-6.0, 6.0)
+
+
+def mlp(widths: tuple[int, ...], tanh_last: bool) -> nn.Sequential:
+    """Fully connected layers ``widths[0] -> ... -> widths[-1]`` with tanh between them
+    (and after the last one when ``tanh_last``), Glorot-initialised for tanh: with
+    PyTorch's default initialisation the signal fades through the 4-layer tanh stacks
+    and training sat on a plateau for tens of epochs."""
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(zip(widths[:-1], widths[1:])):
+        linear = nn.Linear(a, b)
+        nn.init.xavier_uniform_(linear.weight, gain=nn.init.calculate_gain("tanh"))
+        nn.init.zeros_(linear.bias)
+        layers.append(linear)
+        if tanh_last or i < len(widths) - 2:
+            layers.append(nn.Tanh())
+    return nn.Sequential(*layers)
+
+
+class WindowLSTM(nn.Module):
+    """Two bidirectional LSTM layers over a window (B, L, E) with input dropout; returns
+    the (B, 2H) state at the centre frame. The second layer runs forward over frames
+    0..centre and backward over centre..L-1 only: exactly what a full bidirectional layer
+    gives at the centre, at about half the cost."""
+
+    def __init__(self, n_in: int, hidden: int, dropout: float) -> None:
+        super().__init__()
+        self.dropout = nn.Dropout(dropout)
+        self.layer1 = nn.LSTM(n_in, hidden, batch_first=True, bidirectional=True)
+        self.forward2 = nn.LSTM(2 * hidden, hidden, batch_first=True)
+        self.backward2 = nn.LSTM(2 * hidden, hidden, batch_first=True)
+
+    def forward(self, windows: torch.Tensor) -> torch.Tensor:
+        r = windows.shape[1] // 2
+        h, _ = self.layer1(self.dropout(windows))
+        f, _ = self.forward2(h[:, : r + 1])
+        b, _ = self.backward2(h[:, r:].flip(1))
+        return torch.cat([f[:, -1], b[:, -1]], dim=1)
+
+
+class WindowNet(nn.Module):
+    """Per-frame encoder (or none), then a window core, then a head giving ``n_out``
+    numbers per window.
+
+    encoder: 4 tanh layers to a 64-d code (EBF, EBD) or the raw features (BF, NN).
+    recurrent: the 2-layer B-LSTM and a 4-layer head (EBF, BF, EBD), or (NN) 6 fully
+    connected layers over the flattened (L x features) window. Either core drops its
+    inputs out with probability ``dropout`` in training.
+    """
+
+    def __init__(self, n_in: int, n_out: int, *, encoder: bool, recurrent: bool, lstm_units: int,
+                 dropout: float, window: int) -> None:
+        super().__init__()
+        self.encoder = mlp((n_in,) + ENCODER_WIDTHS, tanh_last=True) if encoder else nn.Identity()
+        width = ENCODER_WIDTHS[-1] if encoder else n_in
+        if recurrent:
+            self.core: nn.Module = WindowLSTM(width, lstm_units, dropout)
+            self.head = mlp((2 * lstm_units,) + HEAD_WIDTHS + (n_out,), tanh_last=False)
+        else:
+            self.core = nn.Sequential(nn.Dropout(dropout), nn.Flatten())
+            self.head = mlp((window * width,) + NN_WIDTHS + (n_out,), tanh_last=False)
+        last = self.head[-1]
+        with torch.no_grad():  # start near "no correction": small outputs
+            last.weight.mul_(0.1)
+            last.bias.zero_()
+
+    def encode(self, frames: torch.Tensor) -> torch.Tensor:
+        """(..., n_in) normalised frame features -> (..., E) codes."""
+        return self.encoder(frames)
+
+    def forward(self, windows: torch.Tensor) -> torch.Tensor:
+        """(B, L, E) windows of codes -> (B, n_out)."""
+        return self.head(self.core(windows))
+
+
+def offsets_like(values: torch.Tensor) -> torch.Tensor:
+    """(L,) frame offsets -r..r of a window tensor (B, L, C), in its dtype."""
+    r = values.shape[1] // 2
+    return torch.arange(-r, r + 1, dtype=values.dtype, device=values.device)
+
+
+def sigma_frames(log_sigma: torch.Tensor) -> torch.Tensor:
+    """Filter standard deviations in frames from the head's outputs: ``exp``, clamped."""
+    return torch.exp(log_sigma.clamp(*LOG_SIGMA_RANGE))
+
+
+def gaussian_logits(sigma: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:
+    """Log weights (B, L, C) of Gaussians with std ``sigma`` (B, C) frames at ``offsets``
+    (L,) frames (up to the normalisation)."""
+    return -0.5 * offsets[None, :, None] ** 2 / sigma[:, None, :] ** 2
+
+
+def filter_windows(logits: torch.Tensor, values: torch.Tensor, valid: torch.Tensor
+                   ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Weighted circular mean over each window: ``softmax(logits)`` over the window
+    frames that exist (``valid`` (B, L); weights renormalised over them), applied to the
+    angles ``values`` (B, L, C) in degrees. Returns the filtered centre frames (B, C),
+    on the centre frame's branch (within 180 degrees of it), and the weights (B, L, C).
+    For small spreads this is the weighted average; unlike it, a whole turn that noise
+    slipped into the unwrapped channel, or noise of tens of degrees on a channel near
+    gimbal lock, does not wreck it. The centre frame must be valid."""
+    logits = logits.to(values.dtype).masked_fill(~valid[:, :, None], float("-inf"))
+    weights = torch.softmax(logits, dim=1)
+    centre = values[:, values.shape[1] // 2]
+    deviation = torch.deg2rad(values - centre[:, None])
+    mean = torch.atan2((weights * torch.sin(deviation)).sum(dim=1), (weights * torch.cos(deviation)).sum(dim=1))
+    return centre + torch.rad2deg(mean), weights
+
+
+def weights_sigma(weights: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:
+    """(B, C) standard deviation in frames of filter weights (B, L, C) over ``offsets``."""
+    mean = (weights * offsets[None, :, None]).sum(dim=1)
+    second = (weights * offsets[None, :, None] ** 2).sum(dim=1)
+    return torch.sqrt(torch.clamp(second - mean**2, min=0.0))

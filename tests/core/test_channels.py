@@ -1,0 +1,31 @@
+"""Channel helpers: retiming and gap distances."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workbench.core.channels import gap_distance, retime
+
+
+def test_retime_plays_faster_and_slower_by_linear_interpolation():
+    X = np.stack([np.arange(11.0), np.arange(11.0) ** 2], axis=1)  # (11, 2)
+    fast = retime(X, 2.0)
+    assert fast.shape == (6, 2) and np.allclose(fast, X[::2])
+    slow = retime(X, 0.5)
+    assert slow.shape == (21, 2) and np.allclose(slow[::2], X)
+    assert np.allclose(slow[1::2, 0], np.arange(10) + 0.5)  # halfway, linearly
+    assert retime(np.zeros((1, 3, 3)), 1.5).shape == (1, 3, 3)
+    with pytest.raises(ValueError):
+        retime(X, 0.0)
+
+
+def test_gap_distance_counts_frames_to_the_nearest_observed_sample():
+    missing = np.zeros((10, 3), bool)
+    missing[2:7, 0] = True      # a gap inside the clip
+    missing[:3, 1] = True       # a gap at the start
+    missing[:, 2] = True        # never observed
+    d = gap_distance(missing)
+    assert d[:, 0].tolist() == [0, 0, 1, 2, 3, 2, 1, 0, 0, 0]
+    assert d[:, 1].tolist() == [3, 2, 1, 0, 0, 0, 0, 0, 0, 0]
+    assert np.isinf(d[:, 2]).all()

@@ -1,0 +1,259 @@
+"""EBF, BF and NN (engines/ebf): the adaptive filter's math, streaming == offline,
+diagnostics, the bias variant, weights, skeleton checks, a tiny fit and a quality check
+with the committed weights. One torch thread; fits are 1-2 epochs on tiny data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from engines.ebf import BF, EBF, NN  # noqa: E402
+from engines.ebf.features import RADIUS, root_angular_velocity_dps, window_index  # noqa: E402
+from engines.ebf.nets import filter_windows, gaussian_logits, offsets_like  # noqa: E402
+from workbench import metrics, registry  # noqa: E402
+from workbench.core.motion import Observation, angle_columns  # noqa: E402
+from workbench.core.channels import unwrap_deg  # noqa: E402
+from workbench.corruption import parse_corruption  # noqa: E402
+from workbench.engine import EngineError, NotFittedError  # noqa: E402
+
+torch.set_num_threads(1)
+L = 2 * RADIUS + 1
+
+
+# -- the filter ---------------------------------------------------------------------------
+def _windows(B=5, C=4, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    values = torch.randn(B, L, C, generator=g, dtype=torch.float64) * 10
+    valid = torch.ones(B, L, dtype=torch.bool)
+    return values, valid
+
+
+def test_gaussian_weights_renormalised_over_existing_frames():
+    values, valid = _windows(B=1, C=1)
+    valid[0, :10] = False  # window runs 10 frames off the start of the clip
+    sigma = torch.tensor([[4.0]], dtype=torch.float64)
+    _, w = filter_windows(gaussian_logits(sigma, offsets_like(values)), values, valid)
+    w = w[0, :, 0].numpy()
+    d = np.arange(-RADIUS, RADIUS + 1)
+    expect = np.exp(-d**2 / 32.0) * (d >= -5)
+    assert np.allclose(w, expect / expect.sum(), atol=1e-12)
+    assert np.all(w[:10] == 0) and w.sum() == pytest.approx(1.0)
+
+
+def test_a_whole_turn_inside_the_window_does_not_move_the_average():
+    values, valid = _windows(B=2, C=3)
+    turned = values.clone()
+    turned[:, 20:] += 360.0  # an unwrapping slip 5 frames after the centre
+    logits = gaussian_logits(torch.full((2, 3), 6.0, dtype=torch.float64), offsets_like(values))
+    assert torch.allclose(filter_windows(logits, turned, valid)[0], filter_windows(logits, values, valid)[0])
+
+
+def test_constant_signal_stays_constant():
+    values = torch.full((3, L, 2), 37.5, dtype=torch.float64)
+    valid = torch.ones(3, L, dtype=torch.bool)
+    valid[1, 20:] = False
+    sigma = torch.tensor([[0.3, 2.0], [5.0, 50.0], [1.0, 1e3]], dtype=torch.float64)
+    out, _ = filter_windows(gaussian_logits(sigma, offsets_like(values)), values, valid)
+    assert torch.allclose(out, torch.full((3, 2), 37.5, dtype=torch.float64), atol=1e-12)
+
+
+def test_huge_sigma_is_window_circular_mean_and_tiny_sigma_is_identity():
+    values, valid = _windows()
+    valid[2, 25:] = False
+    offsets = offsets_like(values)
+    huge, _ = filter_windows(gaussian_logits(torch.full((5, 4), 1e6, dtype=torch.float64), offsets), values, valid)
+    a = torch.deg2rad(values) * valid[:, :, None]  # invalid frames: angle 0, weight 0
+    w = valid[:, :, None].double()
+    mean = torch.rad2deg(torch.atan2((w * torch.sin(a)).sum(1), (w * torch.cos(a)).sum(1)))
+    assert torch.allclose(huge, mean, atol=1e-6)
+    small = values * 0.01  # for small spreads the circular mean is the plain mean
+    near, _ = filter_windows(gaussian_logits(torch.full((5, 4), 1e6, dtype=torch.float64), offsets), small, valid)
+    plain = (small * valid[:, :, None]).sum(1) / valid.sum(1, keepdim=True)
+    assert torch.allclose(near, plain, atol=1e-5)
+    tiny, _ = filter_windows(gaussian_logits(torch.full((5, 4), 1e-3, dtype=torch.float64), offsets), values, valid)
+    assert torch.allclose(tiny, values[:, RADIUS], atol=1e-12)
+
+
+def test_window_index_repeats_edges_and_marks_missing_frames():
+    idx, valid = window_index(np.array([0, 5, 9]), 10)
+    assert idx.shape == (3, L) and idx.min() == 0 and idx.max() == 9
+    assert idx[0, RADIUS] == 0 and valid[0, RADIUS:RADIUS + 10].all() and not valid[0, :RADIUS].any()
+    assert valid.sum(axis=1).tolist() == [10, 10, 10]
+
+
+def test_root_angular_velocity_is_heading_invariant(walk):
+    from workbench.core.rotations import axis_rotation, euler_to_matrix, matrix_to_euler
+
+    order = walk.skeleton.rotation_order(0)
+    v = root_angular_velocity_dps(walk.channels[:, 3:6], order, walk.fps)
+    heading = axis_rotation(1, np.deg2rad(70.0))  # about Y, which is up
+    turned = matrix_to_euler(heading @ euler_to_matrix(walk.channels[:, 3:6], order), order)
+    assert v.shape == (walk.n_frames, 3) and np.all(v[0] == 0)
+    assert np.allclose(root_angular_velocity_dps(turned, order, walk.fps), v, atol=1e-6)
+
+
+# -- committed weights ---------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def ebf():
+    engine = registry.create("ebf")
+    assert engine.skeleton_signature_ is not None, "committed EBF weights are missing"
+    return engine
+
+
+def test_streaming_equals_offline(ebf, walk):
+    obs = parse_corruption("angular:0.5").apply(walk, seed=3)
+    offline = ebf.clean(obs).motion.channels
+    stream = ebf.stream(walk.skeleton, walk.fps)
+    out, lags = [], []
+    for i, frame in enumerate(obs.motion.channels):
+        row = stream.push(frame)
+        if row is not None:
+            lags.append(i - len(out))
+            out.append(row)
+    out += list(stream.flush())
+    assert set(lags) == {RADIUS}
+    assert np.abs(np.array(out) - offline).max() < 1e-5
+
+
+def test_stream_of_a_take_shorter_than_the_window(ebf, walk):
+    short = walk.slice(0, 9)
+    obs = parse_corruption("angular:0.5").apply(short, seed=1)
+    stream = ebf.stream(short.skeleton, short.fps)
+    assert all(stream.push(f) is None for f in obs.motion.channels)
+    assert np.abs(stream.flush() - ebf.clean(obs).motion.channels).max() < 1e-5
+
+
+def test_stream_refuses_gaps(ebf, walk):
+    stream = ebf.stream(walk.skeleton, walk.fps)
+    frame = walk.channels[0].copy()
+    frame[10] = np.nan
+    with pytest.raises(EngineError):
+        stream.push(frame)
+
+
+def test_diagnostics_shapes_and_pass_through_root(ebf, walk):
+    obs = parse_corruption("angular:0.5+gaps:0.01").apply(walk, seed=0)
+    res = ebf.clean(obs)
+    sigma = res.diagnostics["filter_sigma_frames"]
+    cols = angle_columns(walk.skeleton)
+    assert sigma.shape == (walk.n_frames, 3 + 3 * walk.skeleton.n_joints)
+    assert np.all(sigma[:, :6] == 0) and np.all(sigma[:, cols] > 0)
+    assert np.isfinite(res.motion.channels).all()
+    assert np.allclose(res.motion.channels[:, :6], obs.motion.channels[:, :6], atol=1e-9)
+
+
+def _reference_filter(X: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Gaussian filter (weighted circular mean) of angles X (F, C) in degrees with
+    per-sample sigma (F, C) over +/-RADIUS frames, weights renormalised over the frames
+    that exist (plain numpy, loops)."""
+    F = X.shape[0]
+    out = np.empty_like(X)
+    for t in range(F):
+        lo, hi = max(0, t - RADIUS), min(F, t + RADIUS + 1)
+        d = np.arange(lo, hi) - t
+        w = np.exp(-d[:, None] ** 2 / (2 * sigma[t] ** 2))
+        a = np.deg2rad(X[lo:hi] - X[t])  # the weighted circular mean, on frame t's branch
+        out[t] = X[t] + np.rad2deg(np.arctan2((w * np.sin(a)).sum(0), (w * np.cos(a)).sum(0)))
+    return out
+
+
+def test_output_is_the_gaussian_filter_of_its_diagnostic_sigma(ebf, walk):
+    obs = parse_corruption("angular:0.5").apply(walk.slice(0, 80), seed=2)
+    res = ebf.clean(obs)
+    cols = angle_columns(walk.skeleton)
+    X = unwrap_deg(obs.motion.channels[:, 3:])[:, cols - 3]
+    expect = _reference_filter(X, res.diagnostics["filter_sigma_frames"][:, cols])
+    got = res.motion.channels[:, cols]
+    assert np.abs((got - expect + 180) % 360 - 180).max() < 1e-6
+
+
+def test_bias_variant_subtracts_its_bias(walk):
+    engine = registry.create("ebf:bias=true")
+    assert engine.default_weights_dir().name == "ebf-bias" and engine.skeleton_signature_ is not None
+    obs = parse_corruption("bias:0.5").apply(walk.slice(0, 80), seed=2)
+    res = engine.clean(obs)
+    cols = angle_columns(walk.skeleton)
+    bias = res.diagnostics["bias"]
+    assert bias.shape == res.diagnostics["filter_sigma_frames"].shape and np.all(bias[:, :6] == 0)
+    assert np.abs(bias[:, cols]).max() > 0.1
+    X = unwrap_deg(obs.motion.channels[:, 3:])[:, cols - 3]
+    expect = _reference_filter(X, res.diagnostics["filter_sigma_frames"][:, cols]) - bias[:, cols]
+    assert np.abs((res.motion.channels[:, cols] - expect + 180) % 360 - 180).max() < 1e-6
+
+
+def test_refuses_another_skeleton(ebf, kick):
+    obs = Observation(kick.slice(0, 60))
+    with pytest.raises(EngineError, match="skeleton"):
+        ebf.clean(obs)
+    with pytest.raises(EngineError, match="skeleton"):
+        ebf.stream(kick.skeleton, kick.fps)
+
+
+def test_ebf_beats_gaussian_on_a_held_out_walk(ebf, held_out_walk):
+    gaussian = registry.create("gaussian")
+    errs = {"ebf": [], "gaussian": []}
+    for seed in range(2):
+        obs = parse_corruption("angular:0.5").apply(held_out_walk, seed)
+        errs["ebf"].append(metrics.rms_angle_deg(held_out_walk, ebf.clean(obs).motion))
+        errs["gaussian"].append(metrics.rms_angle_deg(held_out_walk, gaussian.clean(obs).motion))
+    assert np.mean(errs["ebf"]) < 0.8 * np.mean(errs["gaussian"]), errs
+
+
+# -- fitting, weights, parameters ---------------------------------------------------------------
+@pytest.fixture(scope="module")
+def tiny(clips):
+    from workbench.data import select
+
+    return [c.load().slice(0, 120) for c in select(clips, "train", dataset="cmu")[:2]]
+
+
+def test_unfitted_raises(walk):
+    with pytest.raises(NotFittedError):
+        EBF().clean(Observation(walk.slice(0, 40)))
+    with pytest.raises(NotFittedError):
+        EBF().stream(walk.skeleton, walk.fps)
+
+
+def test_tiny_fit_learns_and_round_trips_through_save_and_load(tiny, tmp_path):
+    engine = EBF(EBF.Params(epochs=3, lstm_units=8, batch_windows=64, seed=1)).fit(tiny)
+    history = engine.loss_history_
+    assert history.shape == (3,) and np.isfinite(history).all() and history[-1] < history[0]
+    obs = parse_corruption("angular:0.5").apply(tiny[0], seed=0)
+    before = engine.clean(obs).motion.channels
+    engine.save(tmp_path)
+    again = EBF(EBF.Params(epochs=1, lstm_units=8)).load(tmp_path)
+    assert np.array_equal(again.clean(obs).motion.channels, before)
+    with pytest.raises(EngineError, match="lstm_units"):
+        EBF().load(tmp_path)  # a network of another size
+
+
+@pytest.mark.parametrize("cls,options", [(EBF, {"free": True, "bias": True}), (BF, {}), (NN, {})])
+def test_variants_fit_and_clean(cls, options, tiny):
+    params = dict(epochs=1, batch_windows=64, **options)
+    if cls is not NN:
+        params["lstm_units"] = 8
+    engine = cls(cls.Params(**params)).fit(tiny[:1])
+    res = engine.clean(parse_corruption("angular:0.5").apply(tiny[1], seed=0))
+    assert np.isfinite(res.motion.channels).all()
+    assert set(res.diagnostics) == ({"filter_sigma_frames", "bias"} if options else {"filter_sigma_frames"})
+    sigma = res.diagnostics["filter_sigma_frames"][:, angle_columns(tiny[1].skeleton)]
+    assert np.isfinite(sigma).all() and np.all(sigma >= 0)
+
+
+def test_each_variant_has_its_own_weights_folder():
+    assert registry.create("ebf", pretrained=False).default_weights_dir().name == "ebf"
+    assert registry.create("ebf:bias=true", pretrained=False).default_weights_dir().name == "ebf-bias"
+    assert registry.create("ebf:free=true,bias=true", pretrained=False).variant == "ebf-bias-free"
+    assert registry.create("ebf:epochs=3", pretrained=False).default_weights_dir().name == "ebf"
+    assert registry.create("bf", pretrained=False).default_weights_dir().name == "bf"
+    with pytest.raises(EngineError):
+        registry.create("ebf:lstm_units=0")
+
+
+@pytest.mark.parametrize("name", ["bf", "nn"])
+def test_ablations_have_committed_weights(name, walk):
+    engine = registry.create(name)
+    res = engine.clean(parse_corruption("angular:0.5").apply(walk.slice(0, 60), seed=0))
+    assert np.isfinite(res.motion.channels).all()
