@@ -51,7 +51,7 @@ from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
 from .representation import (Layout, decode, encode, heading, image_mask, known_positions, mirror_rows,
-                             pad_time, resample, rot_y, trajectory)
+                             pad_time, rot_y, trajectory)
 
 #: parameters that only change how a trained network is used (kept when loading weights)
 INFERENCE_PARAMS = ("keep_observed",)
@@ -64,10 +64,16 @@ class TrainingParams:
     """Training and use, shared by the three engines. An epoch is ``frames_per_epoch``
     frames in windows of ``window_frames`` frames (a multiple of 32); the curriculum
     raises the mean gap by 10 frames every ``curriculum_epochs`` epochs (10 to 120, then
-    held); ``time_scale_pct``: every training clip also played this much slower and
-    faster; ``mirror``: half the windows mirrored left/right; ``bf16``: bf16 autocast
-    (training and inference); ``keep_observed``: return observed samples exactly (see
-    the module docstring). The defaults train ``cae`` in about 6 minutes here."""
+    held). Augmentation (:class:`.training.WindowSampler`): ``time_scale_pct``, each
+    window played at a speed drawn log-uniformly in [1 / (1 + p/100), 1 + p/100];
+    ``body_scale_pct``, each window's body and motion scaled uniformly by a factor in
+    1 +- p/100; ``pose_copies``, each clip also trained on this many times with every
+    upper-body joint angle (joints above the root at rest) that varies in the training
+    data offset by a constant drawn from N(0, ``pose_jitter_deg``^2) degrees per copy;
+    ``mirror``, half the windows mirrored left/right; ``input_noise``, Gaussian noise
+    of this standard deviation (normalised units) on the known input entries.
+    ``bf16``: bf16 autocast (training and inference); ``keep_observed``: return
+    observed samples exactly (see the module docstring)."""
 
     epochs: int = 120
     frames_per_epoch: int = 100_000
@@ -78,6 +84,10 @@ class TrainingParams:
     gap_sigma_frames: float = 20.0
     mirror: bool = True
     time_scale_pct: float = 10.0
+    body_scale_pct: float = 0.0
+    input_noise: float = 0.0
+    pose_copies: int = 0
+    pose_jitter_deg: float = 0.0
     seed: int = 0
     bf16: bool = True
     keep_observed: bool = False
@@ -117,25 +127,32 @@ class ConvAutoencoderEngine(Engine):
         net = self.build_network(layout.n_rows)
         if p.window_frames % net.time_multiple:
             raise EngineError(f"window_frames must be a multiple of {net.time_multiple}, got {p.window_frames}")
-        spread = np.concatenate([m.angles_deg for m in motions]).std(axis=0).max(axis=1)
-        constant = np.flatnonzero(spread < 1e-9)
+        varies = np.concatenate([m.angles_deg for m in motions]).std(axis=0) > 1e-9  # (J, 3) per angle
+        varies[0] = False
+        constant = np.flatnonzero(~varies.any(axis=1))
         constant = constant[constant > 0]
         maskable = np.array([j for j in range(1, skeleton.n_joints)
                              if j not in constant and skeleton.has_rotation[j]])
-        scales = (1.0,) if p.time_scale_pct <= 0 else (1 - p.time_scale_pct / 100, 1.0, 1 + p.time_scale_pct / 100)
+        rest = np.zeros(skeleton.n_joints)  # height above the root in the rest pose
+        for j, parent in enumerate(skeleton.parents):
+            rest[j] = rest[parent] + skeleton.offsets[j, 1] if parent >= 0 else 0.0
+        jitter = varies & (rest > 0)[:, None]  # upper-body angles: the feet keep their contacts
         images = []
+        rng = np.random.default_rng(p.seed)
         for m in motions:
-            P, R = forward_kinematics(skeleton, m.root_positions, m.angles_deg)
-            images += [encode(layout, *resample(P, heading(R[:, 0]), s)) for s in scales]
-        frames = [im.shape[0] for im in images]
+            for copy in range(1 + p.pose_copies):
+                angles = m.angles_deg.copy()
+                if copy:  # the same offsets in every frame: other, still smooth poses
+                    angles += rng.normal(0.0, p.pose_jitter_deg, jitter.shape) * jitter
+                P, R = forward_kinematics(skeleton, m.root_positions, angles)
+                images.append(encode(layout, P, heading(R[:, 0])))
         mirror = mirror_rows(layout, skeleton.names) if p.mirror else None
         pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
-        images = [pad_time(im, im, p.window_frames)[0] for im in images]
         # float32 as saved, so a loaded engine computes exactly what the fitted one does
         mean = pool.mean(axis=0).astype(np.float32).astype(float)
         std = np.maximum(pool.std(axis=0), 1e-6).astype(np.float32).astype(float)
-        sampler = WindowSampler(images, frames, mean, std, layout, mirror, maskable, p.window_frames,
-                                p.gap_sigma_frames, np.random.default_rng(p.seed))
+        sampler = WindowSampler(images, mean, std, layout, mirror, maskable, p.window_frames, p.gap_sigma_frames,
+                                p.time_scale_pct, p.body_scale_pct, p.input_noise, rng)
         batches = max(1, p.frames_per_epoch // (p.batch_size * p.window_frames))
         log = train(net, sampler, p.epochs, batches, p.batch_size, p.learning_rate, p.curriculum_epochs,
                     desc=f"train {self.info.name}")

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.core.channels import retime
+from workbench.core.motion import position_unknown
 from workbench.core.skeleton import Skeleton
 
 #: rows before the joints (root height) and after them (vx, vz, turning rate)
@@ -173,13 +173,7 @@ def trajectory(image: np.ndarray, root_known: np.ndarray, ground: np.ndarray,
 def known_positions(observed: np.ndarray, parents) -> np.ndarray:
     """(..., J) whether each joint's position is fixed by the observed angles (..., J):
     the root and every ancestor of the joint are observed."""
-    observed = np.asarray(observed, bool)
-    chain = np.empty_like(observed)  # the joint and all its ancestors observed
-    known = np.empty_like(observed)
-    for j, p in enumerate(parents):
-        known[..., j] = observed[..., 0] if p < 0 else chain[..., p]
-        chain[..., j] = observed[..., j] & (True if p < 0 else chain[..., p])
-    return known
+    return ~position_unknown(observed, parents)
 
 
 def image_mask(layout: Layout, known: np.ndarray) -> np.ndarray:
@@ -242,8 +236,3 @@ def pad_time(image: np.ndarray, mask: np.ndarray, frames: int) -> tuple[np.ndarr
     out[back, -TAIL_ROWS:] *= -1.0
     return out, mask[src]
 
-
-def resample(positions: np.ndarray, theta: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """Positions (F, J, 3) and headings (F,) played ``scale`` times as fast (linear
-    interpolation in time; headings unwrapped first)."""
-    return retime(positions, scale), retime(np.unwrap(theta), scale)

@@ -1,9 +1,9 @@
 """Training shared by ``cae``, ``cae-vanilla`` and ``holden`` (Kaufmann et al. 2020, §3.3).
 
-Each step draws a batch of windows (``window_frames`` frames) of normalised training
-images, each window from a clip with probability proportional to its length, at a
-random start (clips shorter than a window are reflected at their end, as at
-inference); half of them mirrored left/right. Every window gets one of two holes, at
+Each step draws a batch of windows (``window_frames`` frames) of training images, each
+window from a clip with probability proportional to its length, at a random start
+(clips too short are reflected at their end, as at inference), augmented and
+normalised (:meth:`WindowSampler.windows`). Every window gets one of two holes, at
 random with equal chance:
 
 * a block of whole frames (every joint and the root missing), length drawn from
@@ -18,13 +18,13 @@ random with equal chance:
   is unknown (:func:`representation.known_positions`), exactly what the ``joints:N``
   corruption does.
 
-Augmentation (our data is a small fraction of the paper's): left/right mirroring (joints
-swapped by name) and every clip also played 10 % slower and faster. Trained for 32
-epochs without the six held-out training clips and scored on them, the two together
-lowered the reconstruction error from 4.8 to 4.2 cm and the gap error from 5.6 to
-5.4 cm (60 frames) and 8.1 to 7.7 cm (120 frames), though the training loss ended
-higher (less overfitting). Rotation about the up axis would change nothing: the image
-is heading-invariant.
+Augmentation (our six training subjects are a small fraction of the paper's data):
+each window played at a random speed (linear interpolation; velocities scaled with
+it), its body and motion scaled uniformly by a few per cent, mirrored left/right
+(joints swapped by name) half of the time, and Gaussian noise on the known input
+entries (the target stays clean); the images may include copies of the clips with
+other upper-body poses (``pose_copies``, made in :meth:`.engine.ConvAutoencoderEngine.fit`).
+Rotation about the up axis would change nothing: the image is heading-invariant.
 
 Unknown entries enter as 0 (the training mean) and the known-mask is the second input
 channel. The loss is the L1 distance over the whole window (all rows, all frames),
@@ -42,7 +42,7 @@ import torch
 
 from engines.torch_support import progress
 
-from .representation import Layout, image_mask, known_positions
+from .representation import TAIL_ROWS, Layout, image_mask, known_positions, pad_time
 
 GAP_START_FRAMES = 10
 GAP_STEP_FRAMES = 10
@@ -57,31 +57,53 @@ def gap_mean_frames(epoch: int, curriculum_epochs: int) -> int:
 
 
 class WindowSampler:
-    """Batches of normalised windows (B, T, H) and their known-masks (B, T, H) from raw
-    training images (each (F_i, H), padded to at least T frames), with mirroring and
-    holes. A window comes from image i with probability proportional to ``frames[i]``,
-    its length before padding, so every captured frame is drawn equally often."""
+    """Batches of windows (B, T, H) from raw training images (each (F_i, H)): played at a
+    random speed, scaled, mirrored, normalised, with holes and input noise. A window
+    comes from image i with probability proportional to its length F_i, so every
+    captured frame is drawn equally often; images too short for a window are reflected
+    at their end (:func:`representation.pad_time`), as at inference."""
 
-    def __init__(self, images: Sequence[np.ndarray], frames: Sequence[int], mean: np.ndarray, std: np.ndarray,
-                 layout: Layout, mirror: tuple[np.ndarray, np.ndarray] | None, maskable: np.ndarray,
-                 window_frames: int, gap_sigma_frames: float, rng: np.random.Generator) -> None:
-        self.images = [((im - mean) / std).astype(np.float32) for im in images]
-        self.mirrored = None
-        if mirror is not None:
-            perm, sign = mirror
-            self.mirrored = [((im[:, perm] * sign - mean) / std).astype(np.float32) for im in images]
-        self.lengths = np.array([im.shape[0] for im in images])
-        self.weights = np.asarray(frames, float) / np.sum(frames)
+    def __init__(self, images: Sequence[np.ndarray], mean: np.ndarray, std: np.ndarray, layout: Layout,
+                 mirror: tuple[np.ndarray, np.ndarray] | None, maskable: np.ndarray, window_frames: int,
+                 gap_sigma_frames: float, time_scale_pct: float, body_scale_pct: float, input_noise: float,
+                 rng: np.random.Generator) -> None:
+        self.max_speed = 1 + time_scale_pct / 100
+        span = int(math.ceil((window_frames - 1) * self.max_speed)) + 2
+        self.weights = np.array([im.shape[0] for im in images], float)
+        self.weights /= self.weights.sum()
+        self.images = [pad_time(im, im, span)[0] for im in images]
+        self.lengths = np.array([im.shape[0] for im in self.images])
+        self.mean, self.std, self.mirror = mean, std, mirror
         self.layout, self.maskable, self.T = layout, maskable, window_frames
-        self.sigma, self.rng = gap_sigma_frames, rng
+        self.sigma, self.body_scale, self.noise = gap_sigma_frames, body_scale_pct / 100, input_noise
+        self.rng = rng
 
-    def batch(self, size: int, gap_mean: float) -> tuple[np.ndarray, np.ndarray]:
-        """(size, T, H) normalised windows and (size, T, H) known-masks."""
+    def windows(self, size: int) -> np.ndarray:
+        """(size, T, H) normalised windows: each played ``speed`` times as fast (drawn
+        log-uniformly in [1 / max_speed, max_speed]; linear interpolation, the velocity
+        and turning-rate rows times ``speed``), scaled uniformly by 1 +- body_scale (every
+        row but the turning rate: lengths and velocities), half of them mirrored."""
         rng, T = self.rng, self.T
         clips = rng.choice(len(self.images), size=size, p=self.weights)
-        starts = rng.integers(0, self.lengths[clips] - T + 1)
-        flip = rng.random(size) < 0.5 if self.mirrored is not None else np.zeros(size, bool)
-        X = np.stack([(self.mirrored if f else self.images)[c][s:s + T] for c, s, f in zip(clips, starts, flip)])
+        speed = np.exp(rng.uniform(-1.0, 1.0, size) * np.log(self.max_speed))
+        starts = rng.uniform(0.0, self.lengths[clips] - 1 - (T - 1) * speed)
+        t = starts[:, None] + np.arange(T) * speed[:, None]
+        i = np.floor(t).astype(int)
+        w = (t - i)[..., None]
+        X = np.stack([self.images[c][i[b]] * (1 - w[b]) + self.images[c][i[b] + 1] * w[b]
+                      for b, c in enumerate(clips)])
+        X[..., -TAIL_ROWS:] *= speed[:, None, None]
+        X[..., :-1] *= rng.uniform(1 - self.body_scale, 1 + self.body_scale, (size, 1, 1))
+        if self.mirror is not None:
+            flip = rng.random(size) < 0.5
+            X[flip] = X[flip][..., self.mirror[0]] * self.mirror[1]
+        return ((X - self.mean) / self.std).astype(np.float32)
+
+    def batch(self, size: int, gap_mean: float) -> tuple[np.ndarray, torch.Tensor]:
+        """(size, T, H) normalised windows (the target) and the network input (size, 2,
+        H, T): the windows with holes, noise N(0, input_noise^2) on the known entries."""
+        rng, T = self.rng, self.T
+        X = self.windows(size)
         observed = np.ones((size, T, self.layout.n_joints), bool)
         block = rng.random(size) < 0.5
         blocks = []
@@ -101,7 +123,8 @@ class WindowSampler:
                 start = s + int(rng.integers(0, n - length + 1))
                 for j in rng.choice(self.layout.joints, size=int(rng.integers(1, 4)), replace=False):
                     mask[b, start:start + length, self.layout.rows(int(j))] = True
-        return X, mask
+        noisy = X + (self.noise * rng.standard_normal(X.shape)).astype(np.float32) if self.noise > 0 else X
+        return X, network_input(noisy, mask)
 
 
 def network_input(X: np.ndarray, mask: np.ndarray) -> torch.Tensor:
@@ -126,9 +149,9 @@ def train(net: torch.nn.Module, sampler: WindowSampler, epochs: int, batches_per
         gap = gap_mean_frames(epoch, curriculum_epochs)
         total = 0.0
         for _ in range(batches_per_epoch):
-            X, mask = sampler.batch(batch_size, gap)
+            X, x = sampler.batch(batch_size, gap)
             target = torch.from_numpy(np.ascontiguousarray(X.transpose(0, 2, 1)))
-            loss = (net(network_input(X, mask)) - target).abs().mean()
+            loss = (net(x) - target).abs().mean()
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()

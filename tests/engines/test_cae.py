@@ -173,3 +173,27 @@ def test_fit_save_load_round_trip(tiny_fit, tmp_path, walk):
 def test_fit_refuses_mixed_skeletons(walk, kick):
     with pytest.raises(EngineError, match="skeleton"):
         CAE(CAE.Params(epochs=1)).fit([walk, kick])
+
+
+def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
+    """On an image whose rows grow linearly in time (velocity rows constant), a window's
+    slope is speed x scale, its velocities are scaled as much and its turning rate by the
+    speed only; both stay within their ranges."""
+    from engines.cae.training import WindowSampler
+
+    layout = Layout.from_skeleton(walk.skeleton)
+    F, H = 300, layout.n_rows
+    image = np.arange(F)[:, None] * np.linspace(1.0, 2.0, H)[None]
+    image[:, -3:] = [0.5, 1.0, 0.1]
+    sampler = WindowSampler([image], np.zeros(H), np.ones(H), layout, None, np.array([2, 3]), 64, 5.0,
+                            time_scale_pct=50.0, body_scale_pct=5.0, input_noise=0.0, rng=np.random.default_rng(0))
+    X = sampler.windows(32)
+    assert X.shape == (32, 64, H)
+    slope = np.diff(X[:, :, :-3], axis=1) / np.linspace(1.0, 2.0, H)[:-3]
+    speed_scale = slope[:, 0, 0]
+    np.testing.assert_allclose(slope, speed_scale[:, None, None] * np.ones_like(slope), rtol=1e-3)
+    speed = X[:, 0, -1] / 0.1
+    scale = speed_scale / speed
+    np.testing.assert_allclose(X[:, :, -3] / 0.5, (speed * scale)[:, None] * np.ones((32, 64)), rtol=1e-3)
+    assert speed.min() >= 1 / 1.5 - 1e-6 and speed.max() <= 1.5 + 1e-6 and speed.std() > 0.1
+    assert scale.min() >= 0.95 - 1e-6 and scale.max() <= 1.05 + 1e-6 and scale.std() > 0.01
