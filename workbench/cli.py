@@ -212,7 +212,7 @@ def cmd_train(args) -> int:
         summary = run_benchmark([engine], corruption, test, seeds=[0]).summary[engine.spec]
         validation = {"corruption": corruption, "split": "test", "seeds": [0], **summary}
         print(f"test split, {corruption}: " + ", ".join(f"{k} {v:.3f}" for k, v in summary.items()), file=sys.stderr)
-    out = Path(args.out or Path("runs") / engine.info.name)
+    out = Path(args.out or Path("runs") / engine.default_weights_dir().name)
     try:
         manifest = engine.save(out, {"training": {"clips": [c.id for c in train], "split": "train",
                                                   "minutes": round(minutes, 2)}, "validation": validation})
@@ -313,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("engine", metavar="SPEC")
     sp.add_argument("--epochs", type=int)
     data_opt(sp)
-    sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<engine>)")
+    sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias)")
     sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
     sp.set_defaults(func=cmd_train)
 
@@ -326,7 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})")
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default: "
-                        "the registered ones of gaussian, lerp>gaussian, kalman, identity)")
+                        "the registered ones of ebd>ebf, cae, lerp>gaussian, kalman)")
 
     sp = sub.add_parser("gui", help="open the desktop app (also: workbench with no arguments)")
     take_opts(sp)

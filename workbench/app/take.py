@@ -20,7 +20,7 @@ from ..render.scene import skeleton_points
 
 DEFAULT_CLIP = "cmu/walk/35_31"
 DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
-DEFAULT_ENGINES = ("gaussian", "lerp>gaussian", "kalman", "identity")
+DEFAULT_ENGINES = ("ebd>ebf", "cae", "lerp>gaussian", "kalman")
 MOTION_SUFFIXES = (".bvh", ".amc")
 
 

@@ -37,7 +37,7 @@ def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title
     F, C = sigma_frames.shape
     im = ax.imshow(sigma_frames.T, aspect="auto", interpolation="nearest", cmap="viridis",
                    extent=(0, F / fps, C, 0), vmin=0, vmax=vmax or max(float(np.nanmax(sigma_frames)), 1e-6))
-    ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04).set_label("σ (frames)")
+    ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04, extend="max" if vmax else "neither").set_label("σ (frames)")
     groups = channel_groups(names, C)
     bold = {j + 1 for j in highlight} if len(groups) > 1 else set()  # group i is joint i - 1
     keep = label_rows(len(groups), bold, ax.get_window_extent().height / LABEL_PX)
