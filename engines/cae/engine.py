@@ -204,16 +204,15 @@ class ConvAutoencoderEngine(Engine):
         """The network's completion (F, H) of a raw image (F, H) known where ``mask``."""
         import torch
 
-        from engines.torch_support import use_threads
+        from engines.torch_support import torch_threads
 
         from .training import network_input
 
-        use_threads()
         F = image.shape[0]
         frames = -(-F // self.net_.time_multiple) * self.net_.time_multiple
         padded, m = pad_time(image, mask, frames)
         x = network_input(((padded - self.mean_) / self.std_)[None], m[None])
-        with torch.inference_mode():
+        with torch_threads(1), torch.inference_mode():
             y = self.net_(x)[0].numpy().T
         return y[:F] * self.std_ + self.mean_
 

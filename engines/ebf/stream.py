@@ -64,6 +64,12 @@ class FilterStream:
     def push(self, frame: np.ndarray) -> np.ndarray | None:
         """Add the next frame (D,); returns the cleaned frame 15 frames back, or None
         while the first 15 frames are still waiting for their look-ahead."""
+        from engines.torch_support import torch_threads
+
+        with torch_threads(1):
+            return self._push(frame)
+
+    def _push(self, frame: np.ndarray) -> np.ndarray | None:
         import torch
 
         row = np.array(frame, dtype=float).reshape(-1)
@@ -86,11 +92,14 @@ class FilterStream:
     def flush(self) -> np.ndarray:
         """Clean the frames still waiting (the last frame repeated after the take);
         returns them (n, D) and resets the stream for a new take."""
+        from engines.torch_support import torch_threads
+
         out = []
-        while self._pending:
-            while len(self._codes) < 2 * RADIUS + 1:  # (a take shorter than the window: more)
-                self._append(self._codes[-1], self._values[-1], False)
-            out.append(self._emit())
+        with torch_threads(1):
+            while self._pending:
+                while len(self._codes) < 2 * RADIUS + 1:  # (a take shorter than the window: more)
+                    self._append(self._codes[-1], self._values[-1], False)
+                out.append(self._emit())
         self._reset()
         return np.array(out).reshape(-1, self.width)
 
