@@ -46,11 +46,11 @@ import numpy as np
 
 from workbench.core.channels import interpolate_gaps
 from workbench.core.kinematics import forward_kinematics, inverse_kinematics
-from workbench.core.motion import Motion, Observation, channel_mask
+from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
-from .representation import (Layout, decode, encode, heading, image_mask, known_positions, mirror_rows,
+from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, rot_y, trajectory)
 
 #: parameters that only change how a trained network is used (kept when loading weights)
@@ -229,7 +229,7 @@ class ConvAutoencoderEngine(Engine):
         ground = P[:, 0] * np.array([1.0, 0.0, 1.0])
         observed = observation.observed.copy()
         observed[:, self.constant_] = True
-        known = known_positions(observed, layout.parents)
+        known = ~position_unknown(observed, layout.parents)
         image, mask = encode(layout, P, theta), image_mask(layout, known)
         out = self.complete(image, mask)
         ground, theta = trajectory(out, known[:, 0], ground, theta)

@@ -25,7 +25,7 @@ pose short of a half turn of swing.
 
 Positions are known only where the observation fixes them: a joint's position depends
 on the angles of its ancestors (root included), so it is *known* at a frame when the
-root and every ancestor are observed there (:func:`known_positions`); unknown entries
+root and every ancestor are observed there (:func:`workbench.core.motion.position_unknown`); unknown entries
 are the holes the network fills.
 """
 
@@ -36,7 +36,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.core.motion import position_unknown
 from workbench.core.skeleton import Skeleton
 
 #: rows before the joints (root height) and after them (vx, vz, turning rate)
@@ -168,12 +167,6 @@ def trajectory(image: np.ndarray, root_known: np.ndarray, ground: np.ndarray,
         else:
             out_g[run], out_t[run] = g_paths[0], t_paths[0]
     return out_g, out_t
-
-
-def known_positions(observed: np.ndarray, parents) -> np.ndarray:
-    """(..., J) whether each joint's position is fixed by the observed angles (..., J):
-    the root and every ancestor of the joint are observed."""
-    return ~position_unknown(observed, parents)
 
 
 def image_mask(layout: Layout, known: np.ndarray) -> np.ndarray:

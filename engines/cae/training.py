@@ -15,7 +15,7 @@ random with equal chance:
   is what the constraints of tertiary motion blending are;
 * 1 to 3 joints whose angles are missing for the whole window (among the joints whose
   angles vary in the training data): in this position image, every joint below them
-  is unknown (:func:`representation.known_positions`), exactly what the ``joints:N``
+  is unknown (:func:`workbench.core.motion.position_unknown`), exactly what the ``joints:N``
   corruption does.
 
 Augmentation (our six training subjects are a small fraction of the paper's data):
@@ -41,8 +41,10 @@ import numpy as np
 import torch
 
 from engines.torch_support import progress
+from workbench.core.channels import interpolate_frames
+from workbench.core.motion import position_unknown
 
-from .representation import TAIL_ROWS, Layout, image_mask, known_positions, pad_time
+from .representation import TAIL_ROWS, Layout, image_mask, pad_time
 
 GAP_START_FRAMES = 10
 GAP_STEP_FRAMES = 10
@@ -88,10 +90,7 @@ class WindowSampler:
         speed = np.exp(rng.uniform(-1.0, 1.0, size) * np.log(self.max_speed))
         starts = rng.uniform(0.0, self.lengths[clips] - 1 - (T - 1) * speed)
         t = starts[:, None] + np.arange(T) * speed[:, None]
-        i = np.floor(t).astype(int)
-        w = (t - i)[..., None]
-        X = np.stack([self.images[c][i[b]] * (1 - w[b]) + self.images[c][i[b] + 1] * w[b]
-                      for b, c in enumerate(clips)])
+        X = np.stack([interpolate_frames(self.images[c], t[b]) for b, c in enumerate(clips)])
         X[..., -TAIL_ROWS:] *= speed[:, None, None]
         X[..., :-1] *= rng.uniform(1 - self.body_scale, 1 + self.body_scale, (size, 1, 1))
         if self.mirror is not None:
@@ -116,7 +115,7 @@ class WindowSampler:
             else:
                 k = min(int(rng.integers(1, 4)), self.maskable.size)
                 observed[b, :, rng.choice(self.maskable, size=k, replace=False)] = False
-        mask = image_mask(self.layout, known_positions(observed, self.layout.parents))
+        mask = image_mask(self.layout, ~position_unknown(observed, self.layout.parents))
         for b, s, n in blocks:  # partial poses inside some blocks: a few joints over a few frames
             if n >= 10 and rng.random() < PARTIAL_PROBABILITY:
                 length = int(rng.integers(5, min(n, 30) + 1))

@@ -9,13 +9,13 @@ import torch
 
 from workbench import metrics, registry
 from workbench.core.kinematics import forward_kinematics
-from workbench.core.motion import Observation, channel_mask
+from workbench.core.motion import Observation, channel_mask, position_unknown
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
 
 from engines.cae import CAE, Holden
-from engines.cae.representation import (Layout, decode, encode, heading, integrate, known_positions, mirror_rows,
+from engines.cae.representation import (Layout, decode, encode, heading, integrate, mirror_rows,
                                         pad_time)
 
 torch.set_num_threads(1)
@@ -69,7 +69,7 @@ def test_known_positions_follow_the_tree(walk):
     observed = np.ones((2, sk.n_joints), bool)
     observed[0, sk.index("LeftForeArm")] = False
     observed[1, 0] = False
-    known = known_positions(observed, sk.parents)
+    known = ~position_unknown(observed, sk.parents)
     assert known[0, sk.index("LeftForeArm")] and not known[0, sk.index("LeftHand")]
     assert known[0, sk.index("RightHand")] and not known[1].any()
 

@@ -112,20 +112,25 @@ def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray) -> np
     return out
 
 
+def interpolate_frames(X: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Samples (F, ...) at fractional frame times ``t`` (any shape, within [0, F - 1]) by
+    linear interpolation: shape ``t.shape + X.shape[1:]``. Needs F >= 2."""
+    t = np.asarray(t, float)
+    i = np.minimum(np.floor(t).astype(int), X.shape[0] - 2)
+    w = (t - i).reshape(t.shape + (1,) * (X.ndim - 1))
+    return X[i] * (1 - w) + X[i + 1] * w
+
+
 def retime(X: np.ndarray, speed: float) -> np.ndarray:
     """Samples (F, ...) played ``speed`` times as fast: linear interpolation in time at
     frames 0, speed, 2 speed, ... up to F - 1, giving (floor((F - 1) / speed) + 1, ...).
     Angle columns must be unwrapped first."""
     X = np.asarray(X, float)
-    F = X.shape[0]
     if not speed > 0:
         raise ValueError(f"speed must be positive, got {speed}")
-    if F < 2:
+    if X.shape[0] < 2:
         return X.copy()
-    t = np.arange(0.0, F - 1 + 1e-9, speed)
-    i = np.minimum(np.floor(t).astype(int), F - 2)
-    w = (t - i).reshape((-1,) + (1,) * (X.ndim - 1))
-    return X[i] * (1 - w) + X[i + 1] * w
+    return interpolate_frames(X, np.arange(0.0, X.shape[0] - 1 + 1e-9, speed))
 
 
 def gap_distance(missing: np.ndarray) -> np.ndarray:
