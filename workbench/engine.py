@@ -159,7 +159,7 @@ class Engine:
     def require_fitted(self) -> None:
         if self.info.trainable and self.skeleton_signature_ is None:
             raise NotFittedError(
-                f"engine {self.info.name!r} is not trained: run `workbench train {self.info.name}` "
+                f"engine {self.spec!r} is not trained: run `workbench train '{self.spec}'` "
                 f"or give it weights"
             )
 

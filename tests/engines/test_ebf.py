@@ -214,6 +214,8 @@ def test_unfitted_raises(walk):
         EBF().clean(Observation(walk.slice(0, 40)))
     with pytest.raises(NotFittedError):
         EBF().stream(walk.skeleton, walk.fps)
+    with pytest.raises(NotFittedError, match=r"workbench train 'ebf:free=True'"):  # the variant to train
+        registry.create("ebf:free=true").clean(Observation(walk.slice(0, 40)))
 
 
 def test_tiny_fit_learns_and_round_trips_through_save_and_load(tiny, tmp_path):
