@@ -104,20 +104,27 @@ def _smooth_complete(Y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     return sfft.idct(hY, type=2, norm="ortho", axis=0)[:F]
 
 
+def second_difference_band(F: int) -> np.ndarray:
+    """D2'D2 (F, F), D2 the second-difference operator, as the lower band (3, F) of
+    ``scipy.linalg.solveh_banded``. Its last entries of the sub-diagonals are 0, so
+    the bands of several channels laid end to end (``(3, D, F)`` reshaped to
+    ``(3, D F)``) form one banded system whose channels do not couple."""
+    band = np.zeros((3, F))
+    if F >= 3:
+        band[0, :-2] += 1.0
+        band[0, 1:-1] += 4.0
+        band[0, 2:] += 1.0
+        band[1, :-2] -= 2.0
+        band[1, 1:-1] -= 2.0
+        band[2, :-2] += 1.0
+    return band
+
+
 def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky."""
     F, D = Y.shape
-    # lower band of D2'D2 (D2: second-difference operator), then scaled per channel
-    pattern = np.zeros((3, F))
-    if F >= 3:
-        pattern[0, :-2] += 1.0
-        pattern[0, 1:-1] += 4.0
-        pattern[0, 2:] += 1.0
-        pattern[1, :-2] -= 2.0
-        pattern[1, 1:-1] -= 2.0
-        pattern[2, :-2] += 1.0
     ir = 1.0 / r
-    ab = pattern[:, None, :] * (1.0 / q)[None, :, None]      # (3, D, F)
+    ab = second_difference_band(F)[:, None, :] * (1.0 / q)[None, :, None]      # (3, D, F)
     ab[0] += observed.T * ir[:, None]
     b = np.where(observed, Y, 0.0).T * ir[:, None]           # (D, F)
     x = solveh_banded(ab.reshape(3, -1), b.reshape(-1), lower=True, check_finite=False)

@@ -18,6 +18,7 @@ from workbench.core.motion import Motion, Observation, angle_columns, channel_ma
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
+from ..kalman.smoothing import smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -156,6 +157,12 @@ class MSSA(Engine):
         noise_floor: float = 0.05
         #: adaptive Welsch scale, in multiples of sqrt(sigma^2 + noise_floor^2)
         welsch_p_sigma: float = 3.0
+        #: beta, weight of the per-channel smoothness term (needs solver "cg"; 0: the
+        #: paper's objective): mu_l = beta alpha_l lambda_l / 2 with alpha_l the channel's
+        #: data weight and lambda_l the smoothing ratio r / q that the ``kalman`` engine
+        #: would choose for it (Stein's unbiased risk; r the channel's noise variance), so
+        #: beta = 1 adds exactly the prior of that engine's smoother
+        smoothness: float = 1.0
         #: "alternating": the paper's coefficient / motion updates; "cg": exact
         #: minimisation of each IRLS majoriser by conjugate gradients (same objective)
         solver: str = "cg"
@@ -175,6 +182,10 @@ class MSSA(Engine):
                 raise ValueError(f"output must be 'motion' or 'reconstruction', got {self.output!r}")
             if self.solver not in ("alternating", "cg"):
                 raise ValueError(f"solver must be 'alternating' or 'cg', got {self.solver!r}")
+            if not (math.isfinite(self.smoothness) and self.smoothness >= 0):
+                raise ValueError(f"smoothness must be a number >= 0, got {self.smoothness}")
+            if self.smoothness > 0 and self.solver != "cg":
+                raise ValueError('smoothness > 0 needs solver="cg"; set smoothness=0 for the alternating solver')
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -252,12 +263,14 @@ class MSSA(Engine):
         centre = np.where(seen, np.median(sub, axis=0), model.mean)
         u = np.where(seen, (sub - centre) / model.scale, 0.0)
         p = self.params
-        alpha, welsch = observed[:, cols], p.welsch_p_std
-        if p.adaptive:
-            var = np.square(noise_std(u, alpha)) + p.noise_floor ** 2
-            alpha, welsch = alpha / var, p.welsch_p_sigma * np.sqrt(var)
-        result = robust_filter(u, alpha, model.projector, p.prior_weight,
-                               welsch, p.robust, p.tol_rel_cost, p.max_iterations, p.solver)
+        seen_at = observed[:, cols]
+        var = np.square(noise_std(u, seen_at)) + p.noise_floor ** 2
+        weight, welsch = (1.0 / var, p.welsch_p_sigma * np.sqrt(var)) if p.adaptive else (1.0, p.welsch_p_std)
+        mu = None
+        if p.smoothness > 0:
+            mu = 0.5 * p.smoothness * weight * smoothing_ratio(u, var, seen_at.mean(axis=0))
+        result = robust_filter(u, seen_at * weight, model.projector, p.prior_weight, welsch, p.robust,
+                               p.tol_rel_cost, p.max_iterations, p.solver, mu)
         out = np.array(Y)
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre

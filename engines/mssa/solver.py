@@ -6,7 +6,12 @@ y (F, L), observed flags alpha (F, L) in {0, 1}, bases E (L M, K) and windows z_
 M frames from s, flattened channel-major as in :mod:`.bases`), s = 0 .. F - M::
 
     J(z, c) = sum_{t,l} alpha rho(z - y) + lambda sum_s ||z_s - E c_s||^2
+              [+ sum_l mu_l sum_t (z_{t+1,l} - 2 z_{t,l} + z_{t-1,l})^2]
     rho(r)  = p^2 / 2 (1 - exp(-r^2 / p^2))          (Welsch, Eq. 9)
+
+The bracketed smoothness term (our addition, ``smoothness`` mu (L,), "cg" only) is the
+prior of a per-channel constant-velocity Kalman smoother (velocity a random walk of
+variance 1 / (2 mu_l) per frame).
 
 Each iteration (i) sets every window's coefficients in closed form, c_s = E^T z_s
 (Eq. 13); (ii) updates the motion with c fixed (Eq. 14), which separates into one
@@ -34,6 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
+from scipy.linalg import cho_solve_banded, cholesky_banded
+
+from ..kalman.smoothing import second_difference_band
 
 #: IRLS re-weightings per motion update (each lowers J; the outer loop continues anyway)
 IRLS_STEPS = 3
@@ -111,6 +119,7 @@ def robust_filter(
     tol: float = 1e-3,
     max_iterations: int = 100,
     method: str = "alternating",
+    smoothness: "np.ndarray | None" = None,
 ) -> FilterResult:
     """Minimise J for ``y`` (F, L), finite everywhere (missing entries initialised, e.g.
     by linear interpolation), with ``observed`` (F, L): bools, or non-negative data
@@ -125,11 +134,14 @@ def robust_filter(
     coefficients c_s = E^T z_s are eliminated in closed form), i.e. solves
     ``(W + 2 lambda (N - A)) z = W y`` by preconditioned conjugate gradients; the same
     objective, reached in far fewer filter applications when lambda n >> w (the
-    alternating updates then crawl)."""
+    alternating updates then crawl). ``smoothness`` mu (L,) adds the second-difference
+    term of J (needs "cg")."""
     F, M = y.shape[0], projector.window
     if F < M:
         y = np.pad(y, ((0, M - F), (0, 0)), mode="edge")
         observed = np.pad(observed, ((0, M - F), (0, 0)), constant_values=False)
+    if smoothness is not None and method != "cg":
+        raise ValueError('the smoothness term needs method="cg"')
     alpha = np.asarray(observed, float)
     lam = float(prior_weight)
     p2 = np.square(np.asarray(welsch_p, float))
@@ -147,7 +159,12 @@ def robust_filter(
     costs: list[float] = []
     iterations = 0
     if method == "cg":
-        return _cg_filter(y, alpha, z, projector, lam, n, weights, data_cost, tol, max_iterations, F, p2, robust)
+        mu = np.zeros(y.shape[1]) if smoothness is None else np.asarray(smoothness, float)
+
+        def cost(z: np.ndarray) -> float:  # data and smoothness terms
+            return data_cost(z) + float(np.sum(mu * np.square(np.diff(z, n=2, axis=0))))
+
+        return _cg_filter(y, alpha, z, projector, lam, mu, n, weights, cost, tol, max_iterations, F, p2, robust)
     while True:
         added, prior = projector(z)
         costs.append(data_cost(z) + lam * prior)
@@ -168,23 +185,46 @@ CG_STEPS = 80
 CG_TOL = 3e-4
 
 
-def _cg_filter(y, alpha, z, projector, lam, n, weights, data_cost, tol, max_iterations, F, p2, robust):
-    """``robust_filter`` with ``method="cg"`` (see there)."""
+def second_difference_gram(v: np.ndarray) -> np.ndarray:
+    """D2^T D2 v for v (F, L), D2 the second difference over frames (F - 2, F)."""
+    d = v[2:] - 2.0 * v[1:-1] + v[:-2]
+    out = np.zeros_like(v)
+    out[:-2] += d
+    out[1:-1] -= 2.0 * d
+    out[2:] += d
+    return out
+
+
+def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_iterations, F, p2, robust):
+    """``robust_filter`` with ``method="cg"`` (see there); ``data_cost`` includes the
+    smoothness term of weights ``mu`` (L,)."""
     M, L = projector.window, y.shape[1]
     g0 = np.diag(projector.taps.reshape(2 * M - 1, L, L)[M - 1]) / M  # diagonal of A / n
     costs: list[float] = []
     iterations = 0
     added, prior = projector(z)
     costs.append(data_cost(z) + lam * prior)
+    band = second_difference_band(y.shape[0])[:, None, :] * (2.0 * mu)[None, :, None] if mu.any() else None
     while iterations < max_iterations:
         w = weights(z)
-        precond = 1.0 / (w + 2.0 * lam * n * (1.0 - g0) + 1e-12)
+        diagonal = w + 2.0 * lam * n * (1.0 - g0) + 1e-12
+        if band is None:
+            def precond(v):
+                return v / diagonal
+        else:  # exact for the data and smoothness terms: banded Cholesky of every channel
+            ab = band.copy()
+            ab[0] += diagonal.T
+            factor = cholesky_banded(ab.reshape(3, -1), lower=True, check_finite=False)
+
+            def precond(v):
+                x = cho_solve_banded((factor, True), v.T.reshape(-1), check_finite=False)
+                return x.reshape(v.shape[1], v.shape[0]).T
 
         def apply(v):
-            return w * v + 2.0 * lam * (n * v - projector(v)[0])
+            return w * v + 2.0 * lam * (n * v - projector(v)[0]) + 2.0 * mu * second_difference_gram(v)
 
         r = w * y - apply(z)
-        d = precond * r
+        d = precond(r)
         rz = float(np.sum(r * d))
         target = CG_TOL ** 2 * float(np.sum(np.square(w * y))) + 1e-30
         for _ in range(CG_STEPS):
@@ -194,7 +234,7 @@ def _cg_filter(y, alpha, z, projector, lam, n, weights, data_cost, tol, max_iter
             step = rz / float(np.sum(d * q))
             z = z + step * d
             r = r - step * q
-            s_ = precond * r
+            s_ = precond(r)
             rz, rz_old = float(np.sum(r * s_)), rz
             d = s_ + (rz / rz_old) * d
         iterations += 1

@@ -131,6 +131,29 @@ def test_objective_never_increases(fitted, walk):
     assert np.all(np.diff(cg.cost) <= 1e-6 * cg.cost[0])
     same = robust_filter(u, np.ones_like(u, bool), model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg")
     assert same.cost[-1] <= res.cost[-1]
+    smooth = robust_filter(u, alpha, model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg",
+                           smoothness=np.full(u.shape[1], 5.0))
+    assert np.all(np.diff(smooth.cost) <= 1e-6 * smooth.cost[0])
+
+
+def test_smoothness_term_is_the_kalman_smoothers_prior(fitted, walk):
+    # without the bases term, least squares plus the smoothness term is the constant-
+    # velocity RTS smoother of engines.kalman with q = r / lambda
+    from engines.kalman.smoothing import cv_smooth
+
+    model = fitted.models_["angles"]
+    X = walk.channels[:200, model.columns]
+    u = (X - np.median(X, axis=0)) / model.scale + np.random.default_rng(5).normal(0.0, 0.2, (200, model.columns.size))
+    seen = np.ones_like(u, bool)
+    seen[60:90] = False  # a gap: both bridge it with the same cubic-spline-like fill
+    ratio = np.geomspace(10.0, 1e4, u.shape[1])
+    res = robust_filter(u, seen, model.projector, 0.0, 3.0, robust=False, method="cg", smoothness=ratio / 2)
+    kalman = cv_smooth(u, seen, 1.0 / ratio, np.ones(u.shape[1]))
+    assert np.max(np.abs(res.z - kalman)) < 0.02 * np.max(np.abs(kalman))
+    with pytest.raises(ValueError, match="cg"):
+        robust_filter(u, seen, model.projector, 0.1, 3.0, smoothness=ratio / 2)
+    with pytest.raises(ValueError, match="cg"):
+        with_params(fitted, solver="alternating")
 
 
 def test_noise_estimate_tracks_the_added_noise(fitted, walk):
