@@ -163,6 +163,11 @@ class MSSA(Engine):
         #: would choose for it (Stein's unbiased risk; r the channel's noise variance), so
         #: beta = 1 adds exactly the prior of that engine's smoother
         smoothness: float = 1.0
+        #: lambda of a final refit (needs solver "cg"; 0: none, the paper): once the
+        #: robust iterations stop, the motion is solved for once more with their final
+        #: Welsch weights fixed and this weight on the bases term. The strong prior_weight
+        #: makes outliers stand out; the weaker refit biases the samples kept less
+        refit_prior_weight: float = 1.0
         #: "alternating": the paper's coefficient / motion updates; "cg": exact
         #: minimisation of each IRLS majoriser by conjugate gradients (same objective)
         solver: str = "cg"
@@ -184,8 +189,11 @@ class MSSA(Engine):
                 raise ValueError(f"solver must be 'alternating' or 'cg', got {self.solver!r}")
             if not (math.isfinite(self.smoothness) and self.smoothness >= 0):
                 raise ValueError(f"smoothness must be a number >= 0, got {self.smoothness}")
-            if self.smoothness > 0 and self.solver != "cg":
-                raise ValueError('smoothness > 0 needs solver="cg"; set smoothness=0 for the alternating solver')
+            if not (math.isfinite(self.refit_prior_weight) and self.refit_prior_weight >= 0):
+                raise ValueError(f"refit_prior_weight must be a number >= 0, got {self.refit_prior_weight}")
+            if (self.smoothness > 0 or self.refit_prior_weight > 0) and self.solver != "cg":
+                raise ValueError('smoothness > 0 and refit_prior_weight > 0 need solver="cg"; set both to 0 '
+                                 'for the alternating solver')
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -270,7 +278,8 @@ class MSSA(Engine):
         if p.smoothness > 0:
             mu = 0.5 * p.smoothness * weight * smoothing_ratio(u, var, seen_at.mean(axis=0))
         result = robust_filter(u, seen_at * weight, model.projector, p.prior_weight, welsch, p.robust,
-                               p.tol_rel_cost, p.max_iterations, p.solver, mu)
+                               p.tol_rel_cost, p.max_iterations, p.solver, mu,
+                               p.refit_prior_weight)
         out = np.array(Y)
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre

@@ -120,6 +120,7 @@ def robust_filter(
     max_iterations: int = 100,
     method: str = "alternating",
     smoothness: "np.ndarray | None" = None,
+    refit_weight: float = 0.0,
 ) -> FilterResult:
     """Minimise J for ``y`` (F, L), finite everywhere (missing entries initialised, e.g.
     by linear interpolation), with ``observed`` (F, L): bools, or non-negative data
@@ -135,13 +136,15 @@ def robust_filter(
     ``(W + 2 lambda (N - A)) z = W y`` by preconditioned conjugate gradients; the same
     objective, reached in far fewer filter applications when lambda n >> w (the
     alternating updates then crawl). ``smoothness`` mu (L,) adds the second-difference
-    term of J (needs "cg")."""
+    term of J (needs "cg"). ``refit_weight`` > 0 ("cg" only): once the iterations stop,
+    z is solved for once more with the final IRLS weights fixed and the bases term
+    weighted ``refit_weight`` instead of ``prior_weight`` (``cost`` stays J's)."""
     F, M = y.shape[0], projector.window
     if F < M:
         y = np.pad(y, ((0, M - F), (0, 0)), mode="edge")
         observed = np.pad(observed, ((0, M - F), (0, 0)), constant_values=False)
-    if smoothness is not None and method != "cg":
-        raise ValueError('the smoothness term needs method="cg"')
+    if (smoothness is not None or refit_weight > 0) and method != "cg":
+        raise ValueError('the smoothness term and the refit need method="cg"')
     alpha = np.asarray(observed, float)
     lam = float(prior_weight)
     p2 = np.square(np.asarray(welsch_p, float))
@@ -164,7 +167,8 @@ def robust_filter(
         def cost(z: np.ndarray) -> float:  # data and smoothness terms
             return data_cost(z) + float(np.sum(mu * np.square(np.diff(z, n=2, axis=0))))
 
-        return _cg_filter(y, alpha, z, projector, lam, mu, n, weights, cost, tol, max_iterations, F, p2, robust)
+        return _cg_filter(y, alpha, z, projector, lam, mu, n, weights, cost, tol, max_iterations, F, p2, robust,
+                          refit_weight)
     while True:
         added, prior = projector(z)
         costs.append(data_cost(z) + lam * prior)
@@ -195,7 +199,8 @@ def second_difference_gram(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_iterations, F, p2, robust):
+def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_iterations, F, p2, robust,
+               refit_weight):
     """``robust_filter`` with ``method="cg"`` (see there); ``data_cost`` includes the
     smoothness term of weights ``mu`` (L,)."""
     M, L = projector.window, y.shape[1]
@@ -205,8 +210,8 @@ def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_
     added, prior = projector(z)
     costs.append(data_cost(z) + lam * prior)
     band = second_difference_band(y.shape[0])[:, None, :] * (2.0 * mu)[None, :, None] if mu.any() else None
-    while iterations < max_iterations:
-        w = weights(z)
+    def solve(z, w, lam):
+        """Minimise the quadratic with data weights ``w`` exactly (PCG from ``z``)."""
         diagonal = w + 2.0 * lam * n * (1.0 - g0) + 1e-12
         if band is None:
             def precond(v):
@@ -237,10 +242,17 @@ def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_
             s_ = precond(r)
             rz, rz_old = float(np.sum(r * s_)), rz
             d = s_ + (rz / rz_old) * d
+        return z
+
+    while iterations < max_iterations:
+        z = solve(z, weights(z), lam)
         iterations += 1
         added, prior = projector(z)
         costs.append(data_cost(z) + lam * prior)
         if not robust or abs(costs[-2] - costs[-1]) <= tol * costs[-2]:
             break
+    if refit_weight > 0:
+        z = solve(z, weights(z), refit_weight)
+        added, _ = projector(z)
     trust = (alpha > 0) * (np.exp(-np.square(z - y) / p2) if robust else 1.0)
     return FilterResult(z[:F], (added / n)[:F], trust[:F], costs, iterations)
