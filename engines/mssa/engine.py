@@ -168,6 +168,9 @@ class MSSA(Engine):
         #: Welsch weights fixed and this weight on the bases term. The strong prior_weight
         #: makes outliers stand out; the weaker refit biases the samples kept less
         refit_prior_weight: float = 1.0
+        #: the robust iterations start from a running median over this many frames of
+        #: the observation (1: from the observation itself, the paper)
+        start_median_frames: int = 5
         #: "alternating": the paper's coefficient / motion updates; "cg": exact
         #: minimisation of each IRLS majoriser by conjugate gradients (same objective)
         solver: str = "cg"
@@ -194,6 +197,8 @@ class MSSA(Engine):
             if (self.smoothness > 0 or self.refit_prior_weight > 0) and self.solver != "cg":
                 raise ValueError('smoothness > 0 and refit_prior_weight > 0 need solver="cg"; set both to 0 '
                                  'for the alternating solver')
+            if self.start_median_frames < 1:
+                raise ValueError(f"start_median_frames must be at least 1, got {self.start_median_frames}")
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -279,7 +284,7 @@ class MSSA(Engine):
             mu = 0.5 * p.smoothness * weight * smoothing_ratio(u, var, seen_at.mean(axis=0))
         result = robust_filter(u, seen_at * weight, model.projector, p.prior_weight, welsch, p.robust,
                                p.tol_rel_cost, p.max_iterations, p.solver, mu,
-                               p.refit_prior_weight)
+                               p.refit_prior_weight, p.start_median_frames)
         out = np.array(Y)
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.ndimage import median_filter
 
 from ..kalman.smoothing import second_difference_band
 
@@ -121,6 +122,7 @@ def robust_filter(
     method: str = "alternating",
     smoothness: "np.ndarray | None" = None,
     refit_weight: float = 0.0,
+    start_median_frames: int = 1,
 ) -> FilterResult:
     """Minimise J for ``y`` (F, L), finite everywhere (missing entries initialised, e.g.
     by linear interpolation), with ``observed`` (F, L): bools, or non-negative data
@@ -138,7 +140,9 @@ def robust_filter(
     alternating updates then crawl). ``smoothness`` mu (L,) adds the second-difference
     term of J (needs "cg"). ``refit_weight`` > 0 ("cg" only): once the iterations stop,
     z is solved for once more with the final IRLS weights fixed and the bases term
-    weighted ``refit_weight`` instead of ``prior_weight`` (``cost`` stays J's)."""
+    weighted ``refit_weight`` instead of ``prior_weight`` (``cost`` stays J's). With
+    ``robust``, the iterations start from ``y`` filtered by a running median over
+    ``start_median_frames`` frames (1: from ``y`` itself)."""
     F, M = y.shape[0], projector.window
     if F < M:
         y = np.pad(y, ((0, M - F), (0, 0)), mode="edge")
@@ -159,6 +163,8 @@ def robust_filter(
         return float(np.sum(alpha * rho))
 
     z = np.array(y, dtype=float)
+    if robust and start_median_frames > 1:  # the Welsch objective is not convex: start robustly
+        z = median_filter(z, size=(start_median_frames, 1), mode="nearest")
     costs: list[float] = []
     iterations = 0
     if method == "cg":
