@@ -49,8 +49,8 @@ explain, also where the data are clean).
 
 Defaults beyond the paper (its exact setting: ``mssa:adaptive=false,solver=alternating,
 smoothness=0,refit_prior_weight=0,start_median_frames=1,prior_weight=0.1,
-energy_kept=0.99``; ``energy_kept`` changes the bases, so
-that one needs ``workbench train`` first):
+energy_kept=0.99``; ``energy_kept`` changes the bases, so that one needs ``workbench
+train`` first):
 
 * ``adaptive=True``: the noise std sigma_l of every channel is estimated from the
   observation itself (MAD of its second differences, :func:`.engine.noise_std`; outliers

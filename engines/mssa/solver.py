@@ -216,8 +216,10 @@ def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_
     added, prior = projector(z)
     costs.append(data_cost(z) + lam * prior)
     band = second_difference_band(y.shape[0])[:, None, :] * (2.0 * mu)[None, :, None] if mu.any() else None
+
     def solve(z, w, lam):
-        """Minimise the quadratic with data weights ``w`` exactly (PCG from ``z``)."""
+        """Minimise the quadratic with data weights ``w`` and bases weight ``lam``: PCG
+        from ``z`` to a relative residual of ``CG_TOL`` (at most ``CG_STEPS`` steps)."""
         diagonal = w + 2.0 * lam * n * (1.0 - g0) + 1e-12
         if band is None:
             def precond(v):
