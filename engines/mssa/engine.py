@@ -18,7 +18,7 @@ from workbench.core.motion import Motion, Observation, angle_columns, channel_ma
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
-from ..kalman.smoothing import smoothing_ratio
+from ..smoothing import smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 

@@ -294,7 +294,7 @@ def test_kalman_noise_estimate_for_known_white_noise():
     rng = np.random.default_rng(5)
     t = np.arange(2000) / 120.0
     smooth = 30.0 * np.sin(2 * np.pi * 0.7 * t)[:, None] + 10.0 * np.sin(2 * np.pi * 1.9 * t[:, None] + np.arange(4))
-    from engines.kalman.smoothing import estimate_noise
+    from engines.smoothing import estimate_noise
 
     for std in (0.5, 2.0, 5.0):
         Y = smooth + rng.normal(size=smooth.shape) * std
@@ -323,7 +323,7 @@ def test_kalman_fixed_noise_parameters(clip):
 
 
 def test_cv_smoother_equals_rts_recursion():
-    from engines.kalman.smoothing import cv_smooth
+    from engines.smoothing import cv_smooth
 
     rng = np.random.default_rng(1)
     F, D = 120, 5

@@ -144,7 +144,7 @@ def test_objective_never_increases(fitted, walk):
 def test_smoothness_term_is_the_kalman_smoothers_prior(fitted, walk):
     # without the bases term, least squares plus the smoothness term is the constant-
     # velocity RTS smoother of engines.kalman with q = r / lambda
-    from engines.kalman.smoothing import cv_smooth
+    from engines.smoothing import cv_smooth
 
     model = fitted.models_["angles"]
     X = walk.channels[:200, model.columns]

@@ -1,5 +1,6 @@
-"""Numerics shared by ``kalman`` and ``kalman-learned``: the constant-velocity smoother
-of a bank of channels and the estimator of its noise variances.
+"""The constant-velocity smoother of a bank of channels and the estimator of its noise
+variances: the ``kalman`` engine's numerics, shared with ``mssa`` (its smoothness prior)
+and the motion-image autoencoders (their anchor to the observation).
 
 The model, per channel, in frames (``dt = 1``)::
 
