@@ -39,8 +39,13 @@ def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
     axes = _check_order(order)
     a = np.deg2rad(np.asarray(angles_deg, dtype=float))
     R = axis_rotation(axes[0], a[..., 0])
-    R = R @ axis_rotation(axes[1], a[..., 1])
-    return R @ axis_rotation(axes[2], a[..., 2])
+    for n in (1, 2):  # R @ axis_rotation(axes[n], a[..., n]), which mixes two columns of R
+        c, s = np.cos(a[..., n])[..., None], np.sin(a[..., n])[..., None]
+        i, j = (axes[n] + 1) % 3, (axes[n] + 2) % 3
+        Ri, Rj = R[..., :, i].copy(), R[..., :, j].copy()
+        R[..., :, i] = Ri * c + Rj * s
+        R[..., :, j] = Rj * c - Ri * s
+    return R
 
 
 def matrix_to_euler(R: np.ndarray, order: str) -> np.ndarray:
