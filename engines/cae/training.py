@@ -1,9 +1,13 @@
 """Training shared by ``cae``, ``cae-vanilla`` and ``holden`` (Kaufmann et al. 2020, §3.3).
 
 Each step draws a batch of windows (``window_frames`` frames) of training images, each
-window from a clip with probability proportional to its length, at a random start
-(clips too short are reflected at their end, as at inference), augmented and
-normalised (:meth:`WindowSampler.windows`). Every window gets one of two holes, at
+window from a clip drawn uniformly (``sampling="clips"``, the default) or with
+probability proportional to its length (``"frames"``), at a random start (clips too
+short are reflected at their end, as at inference), augmented and normalised
+(:meth:`WindowSampler.windows`). Uniform clips matter here: two long walks hold a
+third of our training frames, the runs and jogs 5 %; drawn by frames, the ``cae``
+scored 4.50 cm on a 60-frame gap of the test split, drawn by clips 3.57 cm
+(validation, subjects 05 and 06 held out: 2.89 and 2.59 cm; linear input fill, both). Every window gets one of two holes, at
 random with equal chance:
 
 * a block of whole frames (every joint and the root missing), length drawn from
@@ -26,8 +30,13 @@ entries (the target stays clean); the images may include copies of the clips wit
 other upper-body poses (``pose_copies``, made in :meth:`.engine.ConvAutoencoderEngine.fit`).
 Rotation about the up axis would change nothing: the image is heading-invariant.
 
-Unknown entries enter as 0 (the training mean) and the known-mask is the second input
-channel. The loss is the L1 distance over the whole window (all rows, all frames),
+Unknown entries enter bridged linearly over time from the known entries of their row
+(``input_fill="linear"``, the default; rows never known enter as 0, the training mean)
+or all as 0 (``"zero"``, the paper), and the known-mask is the second input channel.
+The bridge gives the network the gap's ends where it works on the gap; it lowered the
+validation errors of a 60-frame gap from 3.07 to 2.89 cm and of dropped joints
+(``drop:0.5``) from 2.94 to 2.51 cm, and raised that of a 120-frame gap from 6.3 to
+6.8 cm (frames sampling, both). The loss is the L1 distance over the whole window (all rows, all frames),
 Adam at ``learning_rate``, held for the first three quarters of the epochs and then
 annealed (cosine) to a tenth.
 """
@@ -41,7 +50,7 @@ import numpy as np
 import torch
 
 from engines.torch_support import progress
-from workbench.core.channels import interpolate_frames
+from workbench.core.channels import interpolate_frames, interpolate_gaps
 from workbench.core.motion import position_unknown
 
 from .representation import TAIL_ROWS, Layout, image_mask, pad_time
@@ -68,17 +77,17 @@ class WindowSampler:
     def __init__(self, images: Sequence[np.ndarray], mean: np.ndarray, std: np.ndarray, layout: Layout,
                  mirror: tuple[np.ndarray, np.ndarray] | None, maskable: np.ndarray, window_frames: int,
                  gap_sigma_frames: float, time_scale_pct: float, body_scale_pct: float, input_noise: float,
-                 rng: np.random.Generator) -> None:
+                 input_fill: str, sampling: str, rng: np.random.Generator) -> None:
         self.max_speed = 1 + time_scale_pct / 100
         span = int(math.ceil((window_frames - 1) * self.max_speed)) + 2
-        self.weights = np.array([im.shape[0] for im in images], float)
+        self.weights = np.array([im.shape[0] if sampling == "frames" else 1 for im in images], float)
         self.weights /= self.weights.sum()
         self.images = [pad_time(im, im, span)[0] for im in images]
         self.lengths = np.array([im.shape[0] for im in self.images])
         self.mean, self.std, self.mirror = mean, std, mirror
         self.layout, self.maskable, self.T = layout, maskable, window_frames
         self.sigma, self.body_scale, self.noise = gap_sigma_frames, body_scale_pct / 100, input_noise
-        self.rng = rng
+        self.fill, self.rng = input_fill, rng
 
     def windows(self, size: int) -> np.ndarray:
         """(size, T, H) normalised windows: each played ``speed`` times as fast (drawn
@@ -123,12 +132,18 @@ class WindowSampler:
                 for j in rng.choice(self.layout.joints, size=int(rng.integers(1, 4)), replace=False):
                     mask[b, start:start + length, self.layout.rows(int(j))] = True
         noisy = X + (self.noise * rng.standard_normal(X.shape)).astype(np.float32) if self.noise > 0 else X
-        return X, network_input(noisy, mask)
+        return X, network_input(noisy, mask, self.fill)
 
 
-def network_input(X: np.ndarray, mask: np.ndarray) -> torch.Tensor:
-    """(B, 2, H, T) float32 network input from normalised images (B, T, H) and masks."""
-    x = np.stack([np.where(mask, X, 0.0), mask], axis=1).astype(np.float32)
+def network_input(X: np.ndarray, mask: np.ndarray, fill: str) -> torch.Tensor:
+    """(B, 2, H, T) float32 network input from normalised images (B, T, H) and masks; the
+    unknown entries are 0 (``fill="zero"``, the training mean) or bridged linearly over
+    time from the known entries of their row (``"linear"``; 0 in rows never known)."""
+    if fill == "linear":
+        filled = np.stack([interpolate_gaps(x, m) for x, m in zip(X, mask)])
+    else:
+        filled = np.where(mask, X, 0.0)
+    x = np.stack([filled, mask], axis=1).astype(np.float32)
     return torch.from_numpy(np.ascontiguousarray(x.transpose(0, 1, 3, 2)))
 
 

@@ -186,7 +186,8 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
     image = np.arange(F)[:, None] * np.linspace(1.0, 2.0, H)[None]
     image[:, -3:] = [0.5, 1.0, 0.1]
     sampler = WindowSampler([image], np.zeros(H), np.ones(H), layout, None, np.array([2, 3]), 64, 5.0,
-                            time_scale_pct=50.0, body_scale_pct=5.0, input_noise=0.0, rng=np.random.default_rng(0))
+                            time_scale_pct=50.0, body_scale_pct=5.0, input_noise=0.0, input_fill="zero", sampling="frames",
+                            rng=np.random.default_rng(0))
     X = sampler.windows(32)
     assert X.shape == (32, 64, H)
     slope = np.diff(X[:, :, :-3], axis=1) / np.linspace(1.0, 2.0, H)[:-3]
@@ -197,3 +198,55 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
     np.testing.assert_allclose(X[:, :, -3] / 0.5, (speed * scale)[:, None] * np.ones((32, 64)), rtol=1e-3)
     assert speed.min() >= 1 / 1.5 - 1e-6 and speed.max() <= 1.5 + 1e-6 and speed.std() > 0.1
     assert scale.min() >= 0.95 - 1e-6 and scale.max() <= 1.05 + 1e-6 and scale.std() > 0.01
+
+
+def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
+    """The correction is the network's miss at the known entries, smoothed and bridged
+    across holes: a constant miss comes back whole, one that flips sign every frame
+    (pure noise to the smoother) nearly vanishes, ``exact`` entries get their own miss."""
+    engine = trained["cae"]
+    F, H = 120, 4
+    mask = np.ones((F, H), bool)
+    mask[40:70, 1] = False
+    out = np.zeros((F, H))
+    offset = np.array([1.0, -2.0, 0.5, 3.0])
+    np.testing.assert_allclose(engine.correction(out + offset, mask, out, np.zeros_like(mask)),
+                               np.broadcast_to(offset, (F, H)), atol=1e-12)
+    flips = np.where(np.arange(F) % 2, 1.0, -1.0)[:, None] * np.ones(H)
+    exact = np.zeros_like(mask)
+    exact[10, 2] = True
+    corrected = engine.correction(out + flips, mask, out, exact)
+    assert corrected[10, 2] == flips[10, 2]
+    corrected[10, 2] = 0.0
+    assert np.abs(corrected).max() < 0.05
+
+
+def test_anchor_brings_the_output_back_to_the_observation(test_clip):
+    """On a clean take the network's own output is cm off (its bottleneck); anchored, it
+    keeps the take. Under position noise the anchored result lies below the noise."""
+    plain, anchored = registry.create("cae:anchor=false"), registry.create("cae")
+    assert anchored.params.anchor
+    clean = Observation(test_clip)
+    assert metrics.mpjpe_cm(test_clip, anchored.clean(clean).motion) < 0.2 * metrics.mpjpe_cm(
+        test_clip, plain.clean(clean).motion)
+    noisy = parse_corruption("spatial:1.5").apply(test_clip, seed=0)
+    assert metrics.mpjpe_cm(test_clip, anchored.clean(noisy).motion) < metrics.mpjpe_cm(test_clip, noisy.motion)
+
+
+def test_network_input_bridges_unknown_entries_and_clips_are_drawn_alike(walk):
+    from engines.cae.training import WindowSampler, network_input
+
+    X = np.tile(np.arange(6.0)[:, None], (1, 3))[None]  # (1, T=6, H=3): every row is t
+    mask = np.ones_like(X, bool)
+    mask[0, 1:4, 0] = False  # a hole in row 0, bridged exactly as the row is linear
+    mask[0, :, 2] = False  # row 2 never known
+    linear, zero = network_input(X, mask, "linear")[0], network_input(X, mask, "zero")[0]
+    np.testing.assert_array_equal(linear[0].T, X[0] * [1, 1, 0])
+    np.testing.assert_array_equal(zero[0].T, np.where(mask[0], X[0], 0.0))
+    np.testing.assert_array_equal(linear[1].T, mask[0])
+    layout = Layout.from_skeleton(walk.skeleton)
+    images = [np.zeros((n, layout.n_rows)) for n in (100, 900)]
+    for sampling, weights in (("clips", [0.5, 0.5]), ("frames", [0.1, 0.9])):
+        sampler = WindowSampler(images, np.zeros(layout.n_rows), np.ones(layout.n_rows), layout, None,
+                                np.array([2]), 64, 5.0, 10.0, 0.0, 0.0, "linear", sampling, np.random.default_rng(0))
+        np.testing.assert_allclose(sampler.weights, weights)
