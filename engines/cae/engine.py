@@ -24,9 +24,9 @@ Cleaning a take (Observation -> Motion):
    noise variances it estimates from the miss itself (:mod:`engines.smoothing`),
    bridged linearly across each hole and added to the prediction. The result keeps
    the observation's course and sheds its noise: the autoencoder's bottleneck loses a
-   few cm of every pose (test split, no corruption: 4.3 cm, anchored 0.26 cm), a noisy
-   root makes its velocity rows 10-20 training deviations wrong (``spatial:1.5``: 23 cm,
-   anchored 2.2 cm), and a filled gap joins its ends. ``anchor=false`` returns the
+   few cm of every pose (test split, no corruption: 4.2 cm, anchored 0.23 cm), a noisy
+   root makes its velocity rows 10-20 training deviations wrong (``spatial:1.5``: 10.2
+   cm, anchored 1.9 cm), and a filled gap joins its ends. ``anchor=false`` returns the
    network's output as it is, as in the paper. Observed frames change slightly either
    way. With ``keep_observed=true`` the observed angles and root positions come back
    exactly: the miss is added in full at the known entries (not smoothed), so the
