@@ -204,7 +204,7 @@ class ConvAutoencoderEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from engines.torch_support import load_module_arrays
 
-        saved = dict(manifest.get("params", {}))
+        saved = {"input_fill": "zero", **manifest.get("params", {})}  # older weights saw zeroed holes
         saved.update({k: getattr(self.params, k) for k in INFERENCE_PARAMS})
         try:
             self.params = self.Params(**saved)

@@ -250,3 +250,14 @@ def test_network_input_bridges_unknown_entries_and_clips_are_drawn_alike(walk):
         sampler = WindowSampler(images, np.zeros(layout.n_rows), np.ones(layout.n_rows), layout, None,
                                 np.array([2]), 64, 5.0, 10.0, 0.0, 0.0, "linear", sampling, np.random.default_rng(0))
         np.testing.assert_allclose(sampler.weights, weights)
+
+
+def test_weights_saved_before_input_fill_load_with_zeroed_holes(tiny_fit, tmp_path):
+    import json
+
+    engine, _ = tiny_fit
+    manifest = engine.save(tmp_path)
+    data = json.loads(manifest.read_text())
+    del data["params"]["input_fill"]
+    manifest.write_text(json.dumps(data))
+    assert CAE().load(tmp_path).params.input_fill == "zero"
