@@ -28,7 +28,14 @@ Cleaning a take (Observation -> Motion):
    root makes its velocity rows 10-20 training deviations wrong (``spatial:1.5``: 10.2
    cm, anchored 1.9 cm), and a filled gap joins its ends. ``anchor=false`` returns the
    network's output as it is, as in the paper. Observed frames change slightly either
-   way. With ``keep_observed=true`` the observed angles and root positions come back
+   way. Joints whose children all sit within ``short_lever_cm`` of them (5 cm; CMU:
+   the hands and finger bases) are not aimed from positions, where a few mm of error
+   turn a 3-cm lever by tens of degrees: they keep their observed angles (noise and
+   all), bridged linearly across the holes, as ``lerp`` does; IK aims them only when
+   they are never observed. Test split, RMS angle error: no corruption 1.35 -> 0.53
+   degrees, 60-frame gap 3.72 -> 2.19, ``drop:0.5`` 10.9 -> 3.8; under position noise,
+   which makes the observed hand angles noisy too, ``spatial:1.5`` 7.9 -> 8.1.
+   With ``keep_observed=true`` the observed angles and root positions come back
    exactly: the miss is added in full at the known entries (not smoothed), so the
    filled stretch joins the kept frames without a jump; IK then aims the missing
    joints from the exactly known positions. (So it fills gaps but does not denoise.)
@@ -57,6 +64,7 @@ import numpy as np
 from workbench.core.channels import interpolate_gaps
 from workbench.core.kinematics import forward_kinematics, inverse_kinematics
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
+from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
@@ -64,7 +72,7 @@ from .representation import (Layout, decode, encode, heading, image_mask, mirror
                              pad_time, rot_y, trajectory)
 
 #: parameters that only change how a trained network is used (kept when loading weights)
-INFERENCE_PARAMS = ("keep_observed", "anchor")
+INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm")
 
 Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
 
@@ -84,8 +92,9 @@ class TrainingParams:
     of this standard deviation (normalised units) on the known input entries.
     ``sampling`` ("clips" or "frames") and ``input_fill`` ("linear" or "zero"): see
     :mod:`.training`. ``bf16``: bf16 autocast (training and inference); ``keep_observed``: return
-    observed samples exactly; ``anchor``: anchor the output to the observation (both:
-    the module docstring)."""
+    observed samples exactly; ``anchor``: anchor the output to the observation;
+    ``short_lever_cm``: joints whose children lie closer keep their observed angles, 0
+    for none (all three: the module docstring)."""
 
     epochs: int = 120
     frames_per_epoch: int = 100_000
@@ -106,12 +115,15 @@ class TrainingParams:
     bf16: bool = True
     keep_observed: bool = False
     anchor: bool = True
+    short_lever_cm: float = 5.0
 
     def __post_init__(self) -> None:
         if self.input_fill not in ("zero", "linear"):
             raise ValueError(f"input_fill must be 'zero' or 'linear', got {self.input_fill!r}")
         if self.sampling not in ("frames", "clips"):
             raise ValueError(f"sampling must be 'frames' or 'clips', got {self.sampling!r}")
+        if not (np.isfinite(self.short_lever_cm) and self.short_lever_cm >= 0):
+            raise ValueError(f"short_lever_cm must be 0 (off) or a positive length in cm, got {self.short_lever_cm}")
 
 
 class ConvAutoencoderEngine(Engine):
@@ -267,6 +279,9 @@ class ConvAutoencoderEngine(Engine):
             target = decode(layout, out, ground, theta)
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
         root, angles = inverse_kinematics(skeleton, target, ref)
+        short = short_lever_joints(skeleton, self.params.short_lever_cm)
+        short = short[observation.observed[:, short].any(axis=0)]
+        angles[:, short] = ref[:, short]  # observed, bridged linearly across the holes
         channels = rewrap_angles(np.concatenate([root, angles.reshape(observation.n_frames, -1)], axis=1), observation)
         if self.params.keep_observed:
             given = channel_mask(observation.observed)
@@ -305,3 +320,21 @@ class ConvAutoencoderEngine(Engine):
             image[frames, rows] = np.einsum("fij,fj->fi", Rt, positions - ground[frames])
             constrained[frames, rows] = True
         return image, mask | constrained, constrained
+
+
+def short_lever_joints(skeleton: Skeleton, lever_cm: float) -> np.ndarray:
+    """Indices of the joints with a rotation whose nearest descendants off their own
+    position (looking through zero-offset children) all lie within ``lever_cm``."""
+    out = []
+    for j in np.flatnonzero(skeleton.has_rotation):
+        stack, reach = list(skeleton.children[j]), []
+        while stack:
+            c = stack.pop()
+            length = np.linalg.norm(skeleton.offsets[c]) * skeleton.unit_cm
+            if length > 1e-9:
+                reach.append(length)
+            else:
+                stack.extend(skeleton.children[c])
+        if reach and max(reach) < lever_cm:
+            out.append(int(j))
+    return np.array(out, int)

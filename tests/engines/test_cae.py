@@ -261,3 +261,21 @@ def test_weights_saved_before_input_fill_load_with_zeroed_holes(tiny_fit, tmp_pa
     del data["params"]["input_fill"]
     manifest.write_text(json.dumps(data))
     assert CAE().load(tmp_path).params.input_fill == "zero"
+
+
+def test_short_levers_keep_their_observed_angles(test_clip):
+    """The hands and finger bases (children within 5 cm) come back as observed, bridged
+    linearly across a hole (IK would aim them at finger positions a few mm off)."""
+    from engines.cae.engine import short_lever_joints
+
+    sk = test_clip.skeleton
+    short = short_lever_joints(sk, 5.0)
+    assert [sk.names[j] for j in short] == ["LeftHand", "LeftFingerBase", "RightHand", "RightFingerBase"]
+    obs = parse_corruption("block:30,200").apply(test_clip, seed=0)
+    out = registry.create("cae").clean(obs).motion.angles_deg[:, short]
+    seen = obs.observed[:, short[0]]
+    np.testing.assert_allclose(out[seen], test_clip.angles_deg[:, short][seen], atol=1e-6)
+    np.testing.assert_allclose(out[~seen], registry.create("lerp").clean(obs).motion.angles_deg[:, short][~seen],
+                               atol=1e-6)
+    free = registry.create("cae:short_lever_cm=0").clean(obs).motion.angles_deg[:, short]
+    assert np.abs(free[seen] - test_clip.angles_deg[:, short][seen]).max() > 1.0
