@@ -91,10 +91,10 @@ class TrainingParams:
     ``mirror``, half the windows mirrored left/right; ``input_noise``, Gaussian noise
     of this standard deviation (normalised units) on the known input entries.
     ``sampling`` ("clips" or "frames") and ``input_fill`` ("linear" or "zero"): see
-    :mod:`.training`. ``bf16``: bf16 autocast (training and inference); ``keep_observed``: return
-    observed samples exactly; ``anchor``: anchor the output to the observation;
-    ``short_lever_cm``: joints whose children lie closer keep their observed angles, 0
-    for none (all three: the module docstring)."""
+    :mod:`.training`. ``bf16``: bf16 autocast (training and inference).
+    ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
+    to the observation; ``short_lever_cm``: joints whose children lie closer keep their
+    observed angles, 0 for none (all three: the module docstring)."""
 
     epochs: int = 120
     frames_per_epoch: int = 100_000
