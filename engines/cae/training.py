@@ -7,8 +7,9 @@ short are reflected at their end, as at inference), augmented and normalised
 (:meth:`WindowSampler.windows`). Uniform clips matter here: two long walks hold a
 third of our training frames, the runs and jogs 5 %; drawn by frames, the ``cae``
 scored 4.50 cm on a 60-frame gap of the test split, drawn by clips 3.57 cm
-(validation, subjects 05 and 06 held out: 2.89 and 2.59 cm; linear input fill, both). Every window gets one of two holes, at
-random with equal chance:
+(validation, subjects 05 and 06 held out: 2.89 and 2.59 cm; linear input fill, both).
+
+Every window gets one of two holes, at random with equal chance:
 
 * a block of whole frames (every joint and the root missing), length drawn from
   N(mu_e, gap_sigma_frames^2), clipped to 1..T-2, at a uniform start with at least one
@@ -36,9 +37,11 @@ or all as 0 (``"zero"``, the paper), and the known-mask is the second input chan
 The bridge gives the network the gap's ends where it works on the gap; it lowered the
 validation errors of a 60-frame gap from 3.07 to 2.89 cm and of dropped joints
 (``drop:0.5``) from 2.94 to 2.51 cm, and raised that of a 120-frame gap from 6.3 to
-6.8 cm (frames sampling, both). The loss is the L1 distance over the whole window (all rows, all frames),
-Adam at ``learning_rate``, held for the first three quarters of the epochs and then
-annealed (cosine) to a tenth.
+6.8 cm (frames sampling, both).
+
+The loss is the L1 distance over the whole window (all rows, all frames), Adam at
+``learning_rate``, held for the first three quarters of the epochs and then annealed
+(cosine) to a tenth.
 """
 
 from __future__ import annotations

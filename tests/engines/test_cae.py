@@ -186,8 +186,8 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
     image = np.arange(F)[:, None] * np.linspace(1.0, 2.0, H)[None]
     image[:, -3:] = [0.5, 1.0, 0.1]
     sampler = WindowSampler([image], np.zeros(H), np.ones(H), layout, None, np.array([2, 3]), 64, 5.0,
-                            time_scale_pct=50.0, body_scale_pct=5.0, input_noise=0.0, input_fill="zero", sampling="frames",
-                            rng=np.random.default_rng(0))
+                            time_scale_pct=50.0, body_scale_pct=5.0, input_noise=0.0, input_fill="zero",
+                            sampling="frames", rng=np.random.default_rng(0))
     X = sampler.windows(32)
     assert X.shape == (32, 64, H)
     slope = np.diff(X[:, :, :-3], axis=1) / np.linspace(1.0, 2.0, H)[:-3]
