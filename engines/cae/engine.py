@@ -294,13 +294,14 @@ class ConvAutoencoderEngine(Engine):
         constant-velocity smoother, its noise variances estimated from the miss itself, as
         the ``kalman`` engine does (0 without ``anchor``); bridged linearly across the holes."""
         miss = np.where(mask, image - out, 0.0)
+        kept = exact
         if self.params.anchor:
             from engines.smoothing import cv_smooth, estimate_noise
 
             q, r = estimate_noise(interpolate_gaps(miss, mask), mask)
             miss = np.where(exact, miss, cv_smooth(miss, mask, q, r))
-            exact = mask
-        return interpolate_gaps(np.where(exact, miss, 0.0), mask)
+            kept = mask
+        return interpolate_gaps(np.where(kept, miss, 0.0), mask)
 
     def _constrain(self, image: np.ndarray, mask: np.ndarray, constraints: Constraints, ground: np.ndarray,
                    theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -42,7 +42,7 @@ def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
     for n in (1, 2):  # R @ axis_rotation(axes[n], a[..., n]), which mixes two columns of R
         c, s = np.cos(a[..., n])[..., None], np.sin(a[..., n])[..., None]
         i, j = (axes[n] + 1) % 3, (axes[n] + 2) % 3
-        Ri, Rj = R[..., :, i].copy(), R[..., :, j].copy()
+        Ri, Rj = R[..., :, i].copy(), R[..., :, j]  # column j is read before it is written
         R[..., :, i] = Ri * c + Rj * s
         R[..., :, j] = Rj * c - Ri * s
     return R
