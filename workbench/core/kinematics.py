@@ -46,25 +46,26 @@ def forward_kinematics(
 
 
 def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
-    """Descendants whose positions joint j's rotation fixes, and their offsets (F, n, 3)
-    in j's frame.
+    """Descendants whose positions joint j's rotation fixes, and their offsets in j's
+    frame: (n, 3), or (F, n, 3) when a child was looked through (they vary over frames).
 
     A child with a zero offset sits on j itself and says nothing about j's rotation: look
     through it to its own children, assuming its reference local rotation.
     """
-    F = R_ref_local.shape[0]
     ids: list[int] = []
     vecs: list[np.ndarray] = []
-    stack = [(c, np.broadcast_to(np.eye(3), (F, 3, 3)), np.zeros((F, 3))) for c in skeleton.children[j]]
+    stack = [(c, None, np.zeros(3)) for c in skeleton.children[j]]  # rotation None: identity
     while stack:
         c, R_acc, base = stack.pop()
-        vec = base + np.einsum("fij,j->fi", R_acc, skeleton.offsets[c])
-        if np.linalg.norm(skeleton.offsets[c]) > 1e-9:
+        offset = skeleton.offsets[c]
+        vec = base + (offset if R_acc is None else R_acc @ offset)
+        if np.linalg.norm(offset) > 1e-9:
             ids.append(c)
             vecs.append(vec)
         else:
-            stack.extend((g, R_acc @ R_ref_local[:, c], vec) for g in skeleton.children[c])
-    return ids, (np.stack(vecs, axis=1) if vecs else np.zeros((F, 0, 3)))
+            R_c = R_ref_local[:, c] if R_acc is None else R_acc @ R_ref_local[:, c]
+            stack.extend((g, R_c, vec) for g in skeleton.children[c])
+    return ids, (np.stack(np.broadcast_arrays(*vecs), axis=-2) if vecs else np.zeros((0, 3)))
 
 
 def inverse_kinematics(
@@ -86,30 +87,35 @@ def inverse_kinematics(
     ref = np.zeros((F, J, 3)) if reference_angles_deg is None else np.asarray(reference_angles_deg, float)
     R_ref_local = local_rotations(skeleton, ref)
     R_world = np.empty((F, J, 3, 3))
+    R_local = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
-    angles = np.empty((F, J, 3))
-    orders = skeleton.rotation_orders
     has_rot = skeleton.has_rotation
     root_positions = positions[:, 0] - skeleton.offsets[0]
     for j, p in enumerate(skeleton.parents):
         R_parent = np.broadcast_to(np.eye(3), (F, 3, 3)) if p < 0 else R_world[:, p]
         P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
         R_guess = R_parent @ R_ref_local[:, j]
-        ids, vecs = _effective_children(skeleton, j, R_ref_local)
-        if not has_rot[j] or not ids:
+        ids, vecs = _effective_children(skeleton, j, R_ref_local) if has_rot[j] else ([], None)
+        if not ids:
             R_j = R_guess
         else:
             targets = positions[:, ids] - P[:, j][:, None]
             # One direction, or collinear ones: the smallest correction of the reference.
-            current = np.einsum("fij,fj->fi", R_guess, vecs[:, 0])
+            current = (R_guess @ vecs[..., 0, :, None])[..., 0]
             R_j = vectors_to_rotation(current, targets[:, 0]) @ R_guess
             if len(ids) > 1:
                 local_targets = np.einsum("fji,fnj->fni", R_parent, targets)
                 R_fit = R_parent @ kabsch(vecs, local_targets)
-                s = np.linalg.svd(vecs, compute_uv=False)
-                spread = s[:, 1] > 1e-6 * np.maximum(s[:, 0], 1e-12)
-                R_j = np.where(spread[:, None, None], R_fit, R_j)
+                # spread: some child off the line of the first (sine of the angle > 1e-6)
+                lengths = np.linalg.norm(vecs, axis=-1)
+                sines = np.linalg.norm(np.cross(vecs[..., :1, :], vecs[..., 1:, :]), axis=-1)
+                spread = (sines > 1e-6 * lengths[..., :1] * lengths[..., 1:]).any(axis=-1)
+                R_j = np.where(spread[..., None, None], R_fit, R_j)
         R_world[:, j] = R_j
-        R_local = np.swapaxes(R_parent, -1, -2) @ R_j
-        angles[:, j] = nearest_euler(matrix_to_euler(R_local, orders[j]), ref[:, j]) if has_rot[j] else ref[:, j]
+        R_local[:, j] = np.swapaxes(R_parent, -1, -2) @ R_j
+    angles = ref.copy()
+    orders = skeleton.rotation_orders
+    for order in set(orders[j] for j in np.flatnonzero(has_rot)):
+        idx = [j for j in np.flatnonzero(has_rot) if orders[j] == order]
+        angles[:, idx] = nearest_euler(matrix_to_euler(R_local[:, idx], order), ref[:, idx])
     return root_positions, angles

@@ -152,12 +152,15 @@ def vectors_to_rotation(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     b = target / np.maximum(np.linalg.norm(target, axis=-1, keepdims=True), 1e-12)
     v = np.cross(a, b)
     c = np.sum(a * b, axis=-1)
-    K = np.zeros(v.shape[:-1] + (3, 3))
-    K[..., 0, 1], K[..., 0, 2] = -v[..., 2], v[..., 1]
-    K[..., 1, 0], K[..., 1, 2] = v[..., 2], -v[..., 0]
-    K[..., 2, 0], K[..., 2, 1] = -v[..., 1], v[..., 0]
-    scale = 1.0 / np.maximum(1.0 + c, 1e-12)
-    R = np.eye(3) + K + (K @ K) * scale[..., None, None]
+    # Rodrigues with cos c and sin-scaled axis v: R = c I + [v]x + v v' / (1 + c)
+    R = v[..., :, None] * (v / np.maximum(1.0 + c, 1e-12)[..., None])[..., None, :]
+    R[..., [0, 1, 2], [0, 1, 2]] += c[..., None]
+    R[..., 0, 1] -= v[..., 2]
+    R[..., 0, 2] += v[..., 1]
+    R[..., 1, 0] += v[..., 2]
+    R[..., 1, 2] -= v[..., 0]
+    R[..., 2, 0] -= v[..., 1]
+    R[..., 2, 1] += v[..., 0]
     # Opposite vectors: rotate by 180 degrees about any axis perpendicular to a.
     opposite = c < -1.0 + 1e-9
     if np.any(opposite):
