@@ -20,21 +20,23 @@ Cleaning a take (Observation -> Motion):
    bones from the bridged observation), so the result is a normal Motion. Before IK
    the image is *anchored* to the observation (``anchor``, our addition; on by
    default): the network's miss at the known entries (known minus predicted) is
-   smoothed row by row by the ``kalman`` engine's constant-velocity smoother, with
-   noise variances it estimates from the miss itself (:mod:`engines.smoothing`),
-   bridged linearly across each hole and added to the prediction. The result keeps
-   the observation's course and sheds its noise: the autoencoder's bottleneck loses a
-   few cm of every pose (test split, no corruption: 4.2 cm, anchored 0.23 cm), a noisy
-   root makes its velocity rows 10-20 training deviations wrong (``spatial:1.5``: 10.2
-   cm, anchored 1.9 cm), and a filled gap joins its ends. ``anchor=false`` returns the
-   network's output as it is, as in the paper. Observed frames change slightly either
-   way. Joints whose children all sit within ``short_lever_cm`` of them (5 cm; CMU:
-   the hands and finger bases) are not aimed from positions, where a few mm of error
-   turn a 3-cm lever by tens of degrees: they keep their observed angles (noise and
-   all), bridged linearly across the holes, as ``lerp`` does; IK aims them only when
-   they are never observed. Test split, RMS angle error: no corruption 1.35 -> 0.53
-   degrees, 60-frame gap 3.72 -> 2.19, ``drop:0.5`` 10.9 -> 3.8; under position noise,
-   which makes the observed hand angles noisy too, ``spatial:1.5`` 7.9 -> 8.1.
+   smoothed row by row by the ``kalman`` engine's constant-velocity smoother
+   (:mod:`engines.smoothing`), bridged linearly across each hole and added to the
+   prediction. The smoother's measurement noise is estimated from the observation
+   (the miss's own fast wobble is the network's, to be kept), its smoothing ratio by
+   the risk estimate on the miss. The result keeps the observation's course and sheds
+   its noise: the autoencoder's bottleneck loses a few cm of every pose (test split,
+   no corruption: 4.2 cm, anchored 0.02 cm), a noisy root makes its velocity rows
+   10-20 training deviations wrong (``spatial:1.5``: 10.2 cm, anchored 1.9 cm), and a
+   filled gap joins its ends. ``anchor=false`` returns the network's output as it is, as
+   in the paper. Observed frames change slightly either way. Joints whose children all
+   sit within ``short_lever_cm`` of them (5 cm; CMU: the hands and finger bases) are not
+   aimed from positions, where a few mm of error turn a 3-cm lever by tens of degrees:
+   they keep their observed angles (noise and all), bridged linearly across the holes,
+   as ``lerp`` does; IK aims them only when they are never observed. Test split, RMS
+   angle error: no corruption 1.35 -> 0.53 degrees, 60-frame gap 3.72 -> 2.19,
+   ``drop:0.5`` 10.9 -> 3.8; under position noise, which makes the observed hand angles
+   noisy too, ``spatial:1.5`` 7.9 -> 8.1.
    With ``keep_observed=true`` the observed angles and root positions come back
    exactly: the miss is added in full at the known entries (not smoothed), so the
    filled stretch joins the kept frames without a jump; IK then aims the missing
@@ -291,15 +293,19 @@ class ConvAutoencoderEngine(Engine):
     def correction(self, image: np.ndarray, mask: np.ndarray, out: np.ndarray, exact: np.ndarray) -> np.ndarray:
         """(F, H) added to the network's output ``out``: its miss (image - out) in full at the
         ``exact`` entries; at the other known entries the miss smoothed row by row by the
-        constant-velocity smoother, its noise variances estimated from the miss itself, as
-        the ``kalman`` engine does (0 without ``anchor``); bridged linearly across the holes."""
+        constant-velocity smoother (0 without ``anchor``); bridged linearly across the holes.
+
+        The smoother's measurement variance is the observation's (its noise is what the miss
+        must shed; a clean take's miss passes through), its smoothing ratio the one that
+        minimises the risk on the miss, as the ``kalman`` engine picks it."""
         miss = np.where(mask, image - out, 0.0)
         kept = exact
         if self.params.anchor:
-            from engines.smoothing import cv_smooth, estimate_noise
+            from engines.smoothing import cv_smooth, measurement_variance, smoothing_ratio
 
-            q, r = estimate_noise(interpolate_gaps(miss, mask), mask)
-            miss = np.where(exact, miss, cv_smooth(miss, mask, q, r))
+            r = measurement_variance(image, mask)
+            lam = smoothing_ratio(interpolate_gaps(miss, mask), r, mask.mean(axis=0))
+            miss = np.where(exact, miss, cv_smooth(miss, mask, r / lam, r))
             kept = mask
         return interpolate_gaps(np.where(kept, miss, 0.0), mask)
 

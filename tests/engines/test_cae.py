@@ -223,12 +223,13 @@ def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
 
 def test_anchor_brings_the_output_back_to_the_observation(test_clip):
     """On a clean take the network's own output is cm off (its bottleneck); anchored, it
-    keeps the take. Under position noise the anchored result lies below the noise."""
+    keeps the take (the smoother's noise level is the observation's, near 0). Under
+    position noise the anchored result lies below the noise."""
     plain, anchored = registry.create("cae:anchor=false"), registry.create("cae")
     assert anchored.params.anchor
     clean = Observation(test_clip)
-    assert metrics.mpjpe_cm(test_clip, anchored.clean(clean).motion) < 0.2 * metrics.mpjpe_cm(
-        test_clip, plain.clean(clean).motion)
+    assert metrics.mpjpe_cm(test_clip, plain.clean(clean).motion) > 1.0
+    assert metrics.mpjpe_cm(test_clip, anchored.clean(clean).motion) < 0.05
     noisy = parse_corruption("spatial:1.5").apply(test_clip, seed=0)
     assert metrics.mpjpe_cm(test_clip, anchored.clean(noisy).motion) < metrics.mpjpe_cm(test_clip, noisy.motion)
 
