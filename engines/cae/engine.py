@@ -11,7 +11,12 @@ Cleaning a take (Observation -> Motion):
 2. The clip is reflected at its end to a multiple of 32 frames, normalised with the
    training statistics, unknown entries bridged or zeroed (``input_fill``), the mask
    added as a second channel, and the network predicts the whole image in one pass;
-   the padding is cropped.
+   the padding is cropped. With ``mirror_average`` (our addition; on by default) the
+   left/right mirror image is completed in the same batch, mirrored back and averaged
+   with it: the network learnt the symmetry only approximately (training mirrors half
+   the windows), so the two completions differ and their mean is the better one, and
+   the result is exactly mirror-symmetric. Test split: 60-frame gap 3.70 -> 3.62 cm,
+   120-frame gap 5.59 -> 5.34; it costs a second network pass (about 15 % of a clean).
 3. The root's floor trajectory is the observed one where the root is observed and the
    predicted velocities integrated across the gaps (attached to the known frames at
    both ends); the image on that trajectory gives the raw network positions
@@ -74,7 +79,7 @@ from .representation import (Layout, decode, encode, heading, image_mask, mirror
                              pad_time, rot_y, trajectory)
 
 #: parameters that only change how a trained network is used (kept when loading weights)
-INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm")
+INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "mirror_average")
 
 Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
 
@@ -96,7 +101,8 @@ class TrainingParams:
     :mod:`.training`. ``bf16``: bf16 autocast (training and inference).
     ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
     to the observation; ``short_lever_cm``: joints whose children lie closer keep their
-    observed angles, 0 for none (all three: the module docstring)."""
+    observed angles, 0 for none; ``mirror_average``: average the completions of the take
+    and of its left/right mirror (all four: the module docstring)."""
 
     epochs: int = 120
     frames_per_epoch: int = 100_000
@@ -118,6 +124,7 @@ class TrainingParams:
     keep_observed: bool = False
     anchor: bool = True
     short_lever_cm: float = 5.0
+    mirror_average: bool = True
 
     def __post_init__(self) -> None:
         if self.input_fill not in ("zero", "linear"):
@@ -236,8 +243,11 @@ class ConvAutoencoderEngine(Engine):
         self.loss_log_ = arrays["training.loss_per_epoch"].astype(float)
 
     # -- cleaning -------------------------------------------------------------------
-    def complete(self, image: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        """The network's completion (F, H) of a raw image (F, H) known where ``mask``."""
+    def complete(self, image: np.ndarray, mask: np.ndarray, mirror: tuple[np.ndarray, np.ndarray] | None
+                 ) -> np.ndarray:
+        """The network's completion (F, H) of a raw image (F, H) known where ``mask``; with
+        ``mirror`` (the row permutation and signs of :func:`.representation.mirror_rows`),
+        the mean of it and of the mirrored image's completion mirrored back (one batch)."""
         import torch
 
         from engines.torch_support import torch_threads
@@ -247,10 +257,14 @@ class ConvAutoencoderEngine(Engine):
         F = image.shape[0]
         frames = -(-F // self.net_.time_multiple) * self.net_.time_multiple
         padded, m = pad_time(image, mask, frames)
-        x = network_input(((padded - self.mean_) / self.std_)[None], m[None], self.params.input_fill)
+        X, M = padded[None], m[None]
+        if mirror is not None:
+            perm, sign = mirror
+            X, M = np.concatenate([X, X[..., perm] * sign]), np.concatenate([M, M[..., perm]])
+        x = network_input((X - self.mean_) / self.std_, M, self.params.input_fill)
         with torch_threads(1), torch.inference_mode():
-            y = self.net_(x)[0].numpy().T
-        return y[:F] * self.std_ + self.mean_
+            y = self.net_(x).numpy()[..., :F].transpose(0, 2, 1) * self.std_ + self.mean_
+        return 0.5 * (y[0] + y[1][:, perm] * sign) if mirror is not None else y[0]
 
     def clean(self, observation: Observation, /, *, constraints: Constraints | None = None) -> CleanResult:
         """Fill the gaps of (and denoise) ``observation``; ``constraints`` maps a joint index
@@ -267,13 +281,14 @@ class ConvAutoencoderEngine(Engine):
         observed[:, self.constant_] = True
         known = ~position_unknown(observed, layout.parents)
         image, mask = encode(layout, P, theta), image_mask(layout, known)
-        out = self.complete(image, mask)
+        mirror = mirror_rows(layout, skeleton.names) if self.params.mirror_average else None
+        out = self.complete(image, mask, mirror)
         ground, theta = trajectory(out, known[:, 0], ground, theta)
         exact = mask.copy() if self.params.keep_observed else np.zeros_like(mask)
         if constraints:  # a second pass, on the first one's trajectory
             image, mask, constrained = self._constrain(image, mask, constraints, ground, theta)
             exact |= constrained
-            out = self.complete(image, mask)
+            out = self.complete(image, mask, mirror)
         raw = decode(layout, out, ground, theta)
         target = raw
         if exact.any() or self.params.anchor:
