@@ -45,15 +45,14 @@ def forward_kinematics(
     return P, R
 
 
-def _effective_children(skeleton: Skeleton, children: tuple[tuple[int, ...], ...], j: int,
-                        R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
+def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
     """Descendants whose positions joint j's rotation fixes, and their offsets in j's
     frame: (n, 3), or (F, n, 3) when a child was looked through (they vary over frames).
 
     A child with a zero offset sits on j itself and says nothing about j's rotation: look
-    through it to its own children, assuming its reference local rotation. ``children``:
-    ``skeleton.children``, computed once by the caller.
+    through it to its own children, assuming its reference local rotation.
     """
+    children = skeleton.children
     ids: list[int] = []
     vecs: list[np.ndarray] = []
     stack = [(c, None, np.zeros(3)) for c in children[j]]  # rotation None: identity
@@ -92,13 +91,12 @@ def inverse_kinematics(
     R_local = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
     has_rot = skeleton.has_rotation
-    children = skeleton.children
     root_positions = positions[:, 0] - skeleton.offsets[0]
     for j, p in enumerate(skeleton.parents):
         R_parent = np.broadcast_to(np.eye(3), (F, 3, 3)) if p < 0 else R_world[:, p]
         P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
         R_guess = R_parent @ R_ref_local[:, j]
-        ids, vecs = _effective_children(skeleton, children, j, R_ref_local) if has_rot[j] else ([], None)
+        ids, vecs = _effective_children(skeleton, j, R_ref_local) if has_rot[j] else ([], None)
         if not ids:
             R_j = R_guess
         else:

@@ -7,6 +7,7 @@ one unit is (CMU cgspeed BVH: 1 unit = 5.64 cm), which the metrics use to report
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -87,8 +88,9 @@ class Skeleton:
         """(J,) bool: the joint has rotation channels in the file."""
         return np.array([any(c in ROTATION_CHANNELS for c in ch) for ch in self.channels])
 
-    @property
+    @cached_property
     def children(self) -> tuple[tuple[int, ...], ...]:
+        """Each joint's child indices (built once: IK and tree walks look them up often)."""
         kids: list[list[int]] = [[] for _ in self.names]
         for j, p in enumerate(self.parents):
             if p >= 0:
