@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.core.channels import gap_distance, retime
+from workbench.core.channels import gap_distance, interpolate_gaps, retime
 
 
 def test_retime_plays_faster_and_slower_by_linear_interpolation():
@@ -29,3 +29,18 @@ def test_gap_distance_counts_frames_to_the_nearest_observed_sample():
     assert d[:, 0].tolist() == [0, 0, 1, 2, 3, 2, 1, 0, 0, 0]
     assert d[:, 1].tolist() == [3, 2, 1, 0, 0, 0, 0, 0, 0, 0]
     assert np.isinf(d[:, 2]).all()
+
+
+@pytest.mark.parametrize("missing", [[0, 1, 5, 6, 7, 19], [0], [4], list(range(19))])
+def test_linear_gap_filling_of_whole_frames_matches_np_interp(missing):
+    """Whole frames missing (one mask for every column) are bridged all columns at once;
+    the result is np.interp's, ends held, in every column."""
+    rng = np.random.default_rng(0)
+    X = rng.normal(size=(20, 5))
+    observed = np.ones((20, 5), bool)
+    observed[missing] = False
+    out = interpolate_gaps(X, observed)
+    t = np.arange(20)
+    o = observed[:, 0]
+    for c in range(5):
+        np.testing.assert_allclose(out[:, c], np.interp(t, t[o], X[o, c]), atol=1e-12)

@@ -57,6 +57,11 @@ def interpolate_gaps(X: np.ndarray, observed: np.ndarray, kind: str = "linear") 
     t = np.arange(F)
     missing_cols = np.flatnonzero((~observed).any(axis=0) & observed.any(axis=0))
     if kind == "linear":
+        pattern = observed[:, missing_cols]
+        if missing_cols.size > 1 and (pattern == pattern[:, :1]).all():  # e.g. whole frames missing
+            o = pattern[:, 0]
+            out[np.ix_(~o, missing_cols)] = _bridge_linearly(t[o], X[np.ix_(o, missing_cols)], t[~o])
+            return out
         for c in missing_cols:
             o = observed[:, c]
             out[~o, c] = np.interp(t[~o], t[o], X[o, c])
@@ -77,6 +82,18 @@ def interpolate_gaps(X: np.ndarray, observed: np.ndarray, kind: str = "linear") 
             vals[inside] = spline(tt[inside])
         out[np.ix_(~o, cols)] = vals
     return out
+
+
+def _bridge_linearly(known: np.ndarray, values: np.ndarray, at: np.ndarray) -> np.ndarray:
+    """Values (len(at), C) at the times ``at`` interpolated linearly from ``values`` (K, C)
+    at the increasing times ``known`` (K,), the end values held outside them: what
+    ``np.interp`` does per column, for all columns at once."""
+    if len(known) == 1:
+        return np.repeat(values, len(at), axis=0)
+    right = np.clip(np.searchsorted(known, at), 1, len(known) - 1)
+    left = right - 1
+    w = np.clip((at - known[left]) / (known[right] - known[left]), 0.0, 1.0)[:, None]
+    return values[left] * (1.0 - w) + values[right] * w
 
 
 def _same_mask_groups(observed: np.ndarray, cols: np.ndarray) -> list[np.ndarray]:
