@@ -69,7 +69,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import interpolate_gaps
-from workbench.core.kinematics import forward_kinematics, inverse_kinematics
+from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError
@@ -274,7 +274,9 @@ class ConvAutoencoderEngine(Engine):
         self.check_skeleton(skeleton)
         layout = self.layout_
         bridged = bridge_gaps(observation)
-        P, R = forward_kinematics(skeleton, bridged[:, :3], bridged[:, 3:].reshape(observation.n_frames, -1, 3))
+        ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
+        ref_local = local_rotations(skeleton, ref)
+        P, R = forward_kinematics(skeleton, bridged[:, :3], ref, local=ref_local)
         theta = heading(R[:, 0])
         ground = P[:, 0] * np.array([1.0, 0.0, 1.0])
         observed = observation.observed.copy()
@@ -294,8 +296,7 @@ class ConvAutoencoderEngine(Engine):
         if exact.any() or self.params.anchor:
             out = out + self.correction(image, mask, out, exact)
             target = decode(layout, out, ground, theta)
-        ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
-        root, angles = inverse_kinematics(skeleton, target, ref)
+        root, angles = inverse_kinematics(skeleton, target, ref, reference_local=ref_local)
         short = short_lever_joints(skeleton, self.params.short_lever_cm)
         short = short[observation.observed[:, short].any(axis=0)]
         angles[:, short] = ref[:, short]  # observed, bridged linearly across the holes

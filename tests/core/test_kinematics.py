@@ -37,6 +37,18 @@ def test_ik_recovers_angles_exactly_with_a_reference(walk, kick):
         assert np.allclose(ang, m.angles_deg, atol=1e-6)
 
 
+def test_precomputed_local_rotations_give_the_same_fk_and_ik(walk):
+    from workbench.core.kinematics import local_rotations
+
+    local = local_rotations(walk.skeleton, walk.angles_deg)
+    P, R = forward_kinematics(walk.skeleton, walk.root_positions, walk.angles_deg, local=local)
+    np.testing.assert_array_equal(P, walk.positions)
+    noisy = P + np.random.default_rng(0).normal(0.0, 0.3, P.shape)
+    for a, b in zip(inverse_kinematics(walk.skeleton, noisy, walk.angles_deg, reference_local=local),
+                    inverse_kinematics(walk.skeleton, noisy, walk.angles_deg)):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_ik_without_reference_reaches_the_positions(walk, kick):
     for m in (walk, kick):
         root, ang = inverse_kinematics(m.skeleton, m.positions)

@@ -27,10 +27,11 @@ def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray) -> np.ndarray:
 
 
 def forward_kinematics(
-    skeleton: Skeleton, root_positions: np.ndarray, angles_deg: np.ndarray
+    skeleton: Skeleton, root_positions: np.ndarray, angles_deg: np.ndarray, *, local: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """World joint positions (F, J, 3) and world rotations (F, J, 3, 3)."""
-    R_local = local_rotations(skeleton, np.asarray(angles_deg, float))
+    """World joint positions (F, J, 3) and world rotations (F, J, 3, 3). ``local``: the
+    angles' :func:`local_rotations`, when the caller has them already."""
+    R_local = local_rotations(skeleton, np.asarray(angles_deg, float)) if local is None else local
     F, J = R_local.shape[:2]
     R = np.empty_like(R_local)
     P = np.empty((F, J, 3))
@@ -70,7 +71,8 @@ def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> 
 
 
 def inverse_kinematics(
-    skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None
+    skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None, *,
+    reference_local: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles that place the skeleton's joints at ``positions`` (F, J, 3) as well as
     its fixed bone lengths allow.
@@ -79,14 +81,15 @@ def inverse_kinematics(
     (F, J, 3), the twist about single-child bones and the rotations of leaf joints come
     from it, and every Euler triple is the representation nearest to it (continuous in
     time); without it they are zero. Exact when ``positions`` come from FK of this
-    skeleton and the reference is the true motion.
+    skeleton and the reference is the true motion. ``reference_local``: the reference's
+    :func:`local_rotations`, when the caller has them already.
     """
     positions = np.asarray(positions, float)
     F, J = positions.shape[:2]
     if J != skeleton.n_joints:
         raise ValueError(f"positions have {J} joints, the skeleton {skeleton.n_joints}")
     ref = np.zeros((F, J, 3)) if reference_angles_deg is None else np.asarray(reference_angles_deg, float)
-    R_ref_local = local_rotations(skeleton, ref)
+    R_ref_local = local_rotations(skeleton, ref) if reference_local is None else reference_local
     R_world = np.empty((F, J, 3, 3))
     R_local = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
