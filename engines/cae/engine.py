@@ -109,6 +109,7 @@ class TrainingParams:
     window_frames: int = 256
     batch_size: int = 16
     learning_rate: float = 1e-3
+    ema_decay: float = 0.0
     curriculum_epochs: int = 8
     gap_sigma_frames: float = 20.0
     mirror: bool = True
@@ -197,7 +198,7 @@ class ConvAutoencoderEngine(Engine):
                                 p.time_scale_pct, p.body_scale_pct, p.input_noise, p.input_fill,
                                 p.sampling, rng)
         batches = max(1, p.frames_per_epoch // (p.batch_size * p.window_frames))
-        log = train(net, sampler, p.epochs, batches, p.batch_size, p.learning_rate, p.curriculum_epochs,
+        log = train(net, sampler, p.epochs, batches, p.batch_size, p.learning_rate, p.curriculum_epochs, p.ema_decay,
                     desc=f"train {self.info.name}")
         self.net_, self.layout_, self.constant_ = net, layout, constant
         self.mean_, self.std_, self.loss_log_ = mean, std, np.array(log)

@@ -151,9 +151,16 @@ def network_input(X: np.ndarray, mask: np.ndarray, fill: str) -> torch.Tensor:
 
 
 def train(net: torch.nn.Module, sampler: WindowSampler, epochs: int, batches_per_epoch: int, batch_size: int,
-          learning_rate: float, curriculum_epochs: int, desc: str) -> list[float]:
-    """Train ``net`` in place; returns the mean L1 loss of every epoch."""
+          learning_rate: float, curriculum_epochs: int, ema_decay: float, desc: str) -> list[float]:
+    """Train ``net`` in place; returns the mean L1 loss of every epoch. With ``ema_decay``
+    > 0, ``net`` ends with the exponential moving average of its weights over the steps
+    (this decay per step) instead of the last step's weights."""
     opt = torch.optim.Adam(net.parameters(), lr=learning_rate, fused=True)
+    ema = None
+    if ema_decay > 0:
+        from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
+
+        ema = AveragedModel(net, multi_avg_fn=get_ema_multi_avg_fn(ema_decay))
     anneal_from = int(0.75 * epochs)
     net.train()
     log: list[float] = []
@@ -172,8 +179,12 @@ def train(net: torch.nn.Module, sampler: WindowSampler, epochs: int, batches_per
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
+            if ema is not None:
+                ema.update_parameters(net)
             total += loss.item()
         log.append(total / batches_per_epoch)
         bar.set_postfix(loss=f"{log[-1]:.4f}", gap=gap)
+    if ema is not None:
+        net.load_state_dict(ema.module.state_dict())
     net.eval()
     return log
