@@ -33,14 +33,15 @@ def test_gap_distance_counts_frames_to_the_nearest_observed_sample():
 
 @pytest.mark.parametrize("missing", [[0, 1, 5, 6, 7, 19], [0], [4], list(range(19))])
 def test_linear_gap_filling_of_whole_frames_matches_np_interp(missing):
-    """Whole frames missing (one mask for every column) are bridged all columns at once;
-    the result is np.interp's, ends held, in every column."""
+    """Whole frames missing (one mask for most columns) are bridged all those columns at
+    once; the result is np.interp's, ends held, in every column."""
     rng = np.random.default_rng(0)
     X = rng.normal(size=(20, 5))
     observed = np.ones((20, 5), bool)
     observed[missing] = False
+    observed[3, 4] = False  # one column with a mask of its own
     out = interpolate_gaps(X, observed)
     t = np.arange(20)
-    o = observed[:, 0]
     for c in range(5):
+        o = observed[:, c]
         np.testing.assert_allclose(out[:, c], np.interp(t, t[o], X[o, c]), atol=1e-12)

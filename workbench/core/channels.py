@@ -57,11 +57,14 @@ def interpolate_gaps(X: np.ndarray, observed: np.ndarray, kind: str = "linear") 
     t = np.arange(F)
     missing_cols = np.flatnonzero((~observed).any(axis=0) & observed.any(axis=0))
     if kind == "linear":
+        # the columns missing exactly where the first one is (e.g. whole frames missing)
+        # are bridged in one step, the others one by one
         pattern = observed[:, missing_cols]
-        if missing_cols.size > 1 and (pattern == pattern[:, :1]).all():  # e.g. whole frames missing
-            o = pattern[:, 0]
-            out[np.ix_(~o, missing_cols)] = _bridge_linearly(t[o], X[np.ix_(o, missing_cols)], t[~o])
-            return out
+        shared = (pattern == pattern[:, :1]).all(axis=0)
+        if shared.sum() > 1:
+            o, cols = pattern[:, 0], missing_cols[shared]
+            out[np.ix_(~o, cols)] = _bridge_linearly(t[o], X[np.ix_(o, cols)], t[~o])
+            missing_cols = missing_cols[~shared]
         for c in missing_cols:
             o = observed[:, c]
             out[~o, c] = np.interp(t[~o], t[o], X[o, c])
