@@ -148,19 +148,20 @@ def rotation_angle_deg(R_a: np.ndarray, R_b: np.ndarray) -> np.ndarray:
 
 def vectors_to_rotation(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Smallest rotations (..., 3, 3) turning direction ``source`` (..., 3) onto ``target``."""
-    a = source / np.maximum(np.linalg.norm(source, axis=-1, keepdims=True), 1e-12)
-    b = target / np.maximum(np.linalg.norm(target, axis=-1, keepdims=True), 1e-12)
-    v = np.cross(a, b)
-    c = np.sum(a * b, axis=-1)
-    # Rodrigues with cos c and sin-scaled axis v: R = c I + [v]x + v v' / (1 + c)
-    R = v[..., :, None] * (v / np.maximum(1.0 + c, 1e-12)[..., None])[..., None, :]
-    R[..., [0, 1, 2], [0, 1, 2]] += c[..., None]
-    R[..., 0, 1] -= v[..., 2]
-    R[..., 0, 2] += v[..., 1]
-    R[..., 1, 0] += v[..., 2]
-    R[..., 1, 2] -= v[..., 0]
-    R[..., 2, 0] -= v[..., 1]
-    R[..., 2, 1] += v[..., 0]
+    a = source / np.maximum(np.sqrt(np.einsum("...i,...i->...", source, source)), 1e-12)[..., None]
+    b = target / np.maximum(np.sqrt(np.einsum("...i,...i->...", target, target)), 1e-12)[..., None]
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    vx, vy, vz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx  # v = a x b
+    c = ax * bx + ay * by + az * bz
+    # Rodrigues with cos c and sin-scaled axis v: R = c I + [v]x + v v' / (1 + c), by entries
+    k = 1.0 / np.maximum(1.0 + c, 1e-12)
+    xy, xz, yz = vx * vy * k, vx * vz * k, vy * vz * k
+    R = np.empty(a.shape[:-1] + (3, 3))
+    R[..., 0, 0], R[..., 1, 1], R[..., 2, 2] = c + vx * vx * k, c + vy * vy * k, c + vz * vz * k
+    R[..., 0, 1], R[..., 1, 0] = xy - vz, xy + vz
+    R[..., 0, 2], R[..., 2, 0] = xz + vy, xz - vy
+    R[..., 1, 2], R[..., 2, 1] = yz - vx, yz + vx
     # Opposite vectors: rotate by 180 degrees about any axis perpendicular to a.
     opposite = c < -1.0 + 1e-9
     if np.any(opposite):
