@@ -49,6 +49,24 @@ def test_precomputed_local_rotations_give_the_same_fk_and_ik(walk):
         np.testing.assert_array_equal(a, b)
 
 
+def test_reference_joints_keep_the_reference_angles(walk):
+    """A joint named in reference_joints is not aimed: its angles are the reference's
+    (its descendants are aimed from that rotation; the other joints do not change)."""
+    hand = walk.skeleton.index("LeftHand")
+    ref = walk.angles_deg.copy()
+    ref[:, hand] += 7.0
+    _, free = inverse_kinematics(walk.skeleton, walk.positions, ref)
+    _, kept = inverse_kinematics(walk.skeleton, walk.positions, ref, reference_joints=[hand])
+    np.testing.assert_array_equal(kept[:, hand], ref[:, hand])
+    assert np.abs(free[:, hand] - ref[:, hand]).max() > 1.0  # aimed at the true fingers
+    below = {hand}
+    for j, p in enumerate(walk.skeleton.parents):
+        if p in below:
+            below.add(j)
+    others = [j for j in range(walk.skeleton.n_joints) if j not in below]
+    np.testing.assert_allclose(kept[:, others], free[:, others], atol=1e-9)
+
+
 def test_ik_without_reference_reaches_the_positions(walk, kick):
     for m in (walk, kick):
         root, ang = inverse_kinematics(m.skeleton, m.positions)

@@ -72,7 +72,7 @@ def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> 
 
 def inverse_kinematics(
     skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None, *,
-    reference_local: np.ndarray | None = None
+    reference_local: np.ndarray | None = None, reference_joints=()
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles that place the skeleton's joints at ``positions`` (F, J, 3) as well as
     its fixed bone lengths allow.
@@ -82,7 +82,8 @@ def inverse_kinematics(
     from it, and every Euler triple is the representation nearest to it (continuous in
     time); without it they are zero. Exact when ``positions`` come from FK of this
     skeleton and the reference is the true motion. ``reference_local``: the reference's
-    :func:`local_rotations`, when the caller has them already.
+    :func:`local_rotations`, when the caller has them already. ``reference_joints``:
+    joints that keep the reference's angles instead of being aimed at their children.
     """
     positions = np.asarray(positions, float)
     F, J = positions.shape[:2]
@@ -93,16 +94,19 @@ def inverse_kinematics(
     R_world = np.empty((F, J, 3, 3))
     R_local = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
-    has_rot = skeleton.has_rotation
+    aimed = skeleton.has_rotation.copy()
+    aimed[list(reference_joints)] = False
     root_positions = positions[:, 0] - skeleton.offsets[0]
+    solved = []  # joints aimed at their children; the others keep the reference's angles
     for j, p in enumerate(skeleton.parents):
         R_parent = np.broadcast_to(np.eye(3), (F, 3, 3)) if p < 0 else R_world[:, p]
         P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
         R_guess = R_parent @ R_ref_local[:, j]
-        ids, vecs = _effective_children(skeleton, j, R_ref_local) if has_rot[j] else ([], None)
+        ids, vecs = _effective_children(skeleton, j, R_ref_local) if aimed[j] else ([], None)
         if not ids:
             R_j = R_guess
         else:
+            solved.append(j)
             targets = positions[:, ids] - P[:, j][:, None]
             # One direction, or collinear ones: the smallest correction of the reference.
             current = (R_guess @ vecs[..., 0, :, None])[..., 0]
@@ -119,7 +123,7 @@ def inverse_kinematics(
         R_local[:, j] = np.swapaxes(R_parent, -1, -2) @ R_j
     angles = ref.copy()
     orders = skeleton.rotation_orders
-    for order in set(orders[j] for j in np.flatnonzero(has_rot)):
-        idx = [j for j in np.flatnonzero(has_rot) if orders[j] == order]
+    for order in set(orders[j] for j in solved):
+        idx = [j for j in solved if orders[j] == order]
         angles[:, idx] = nearest_euler(matrix_to_euler(R_local[:, idx], order), ref[:, idx])
     return root_positions, angles
