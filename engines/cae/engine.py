@@ -98,7 +98,9 @@ class TrainingParams:
     ``mirror``, half the windows mirrored left/right; ``input_noise``, Gaussian noise
     of this standard deviation (normalised units) on the known input entries.
     ``sampling`` ("clips" or "frames") and ``input_fill`` ("linear" or "zero"): see
-    :mod:`.training`. ``bf16``: bf16 autocast (training and inference).
+    :mod:`.training`. ``ema_decay``: the weights kept are the exponential moving average
+    over the steps with this decay per step (0: the last step's). ``bf16``: bf16 autocast
+    (training and inference).
     ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
     to the observation; ``short_lever_cm``: joints whose children lie closer keep their
     observed angles, 0 for none; ``mirror_average``: average the completions of the take
@@ -109,7 +111,7 @@ class TrainingParams:
     window_frames: int = 256
     batch_size: int = 16
     learning_rate: float = 1e-3
-    ema_decay: float = 0.0
+    ema_decay: float = 0.998
     curriculum_epochs: int = 8
     gap_sigma_frames: float = 20.0
     mirror: bool = True
@@ -226,7 +228,8 @@ class ConvAutoencoderEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from engines.torch_support import load_module_arrays
 
-        saved = {"input_fill": "zero", **manifest.get("params", {})}  # older weights saw zeroed holes
+        # older weights saw zeroed holes and ended on their last step's weights
+        saved = {"input_fill": "zero", "ema_decay": 0.0, **manifest.get("params", {})}
         saved.update({k: getattr(self.params, k) for k in INFERENCE_PARAMS})
         try:
             self.params = self.Params(**saved)

@@ -41,7 +41,11 @@ validation errors of a 60-frame gap from 3.07 to 2.89 cm and of dropped joints
 
 The loss is the L1 distance over the whole window (all rows, all frames), Adam at
 ``learning_rate``, held for the first three quarters of the epochs and then annealed
-(cosine) to a tenth.
+(cosine) to a tenth. The weights kept are the exponential moving average of the
+steps' weights (``ema_decay`` 0.998 per step: over about the last 20 epochs), which
+damps the last steps' noise: on validation (subjects 05 and 06 held out, same seed)
+the 120-frame gap fell from 6.92 to 6.67 cm, the 60-frame gap from 3.10 to 3.09, and
+no other column rose.
 """
 
 from __future__ import annotations

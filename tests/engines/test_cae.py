@@ -253,15 +253,43 @@ def test_network_input_bridges_unknown_entries_and_clips_are_drawn_alike(walk):
         np.testing.assert_allclose(sampler.weights, weights)
 
 
-def test_weights_saved_before_input_fill_load_with_zeroed_holes(tiny_fit, tmp_path):
+def test_weights_saved_before_input_fill_and_ema_load_as_trained(tiny_fit, tmp_path):
     import json
 
     engine, _ = tiny_fit
     manifest = engine.save(tmp_path)
     data = json.loads(manifest.read_text())
-    del data["params"]["input_fill"]
+    del data["params"]["input_fill"], data["params"]["ema_decay"]
     manifest.write_text(json.dumps(data))
-    assert CAE().load(tmp_path).params.input_fill == "zero"
+    loaded = CAE().load(tmp_path).params
+    assert loaded.input_fill == "zero" and loaded.ema_decay == 0.0
+
+
+def test_ema_keeps_the_average_of_the_steps_weights():
+    """With ema_decay, training ends on the moving average of the weights, not the last
+    step's; the average starts at the first step, so a decay near 1 stays there."""
+    from engines.cae.networks import VanillaNet
+    from engines.cae.training import train
+
+    class Sampler:
+        def __init__(self):
+            self.rng = np.random.default_rng(0)
+
+        def batch(self, size, gap):
+            X = self.rng.normal(size=(size, 32, 8)).astype(np.float32)
+            return X, torch.from_numpy(np.stack([X, np.ones_like(X)], axis=1).transpose(0, 1, 3, 2).copy())
+
+    start = VanillaNet(bf16=False).state_dict()
+
+    def trained(steps, decay):
+        net = VanillaNet(bf16=False)
+        net.load_state_dict(start)
+        train(net, Sampler(), 1, steps, 2, 1e-2, 1, decay, desc="test")
+        return net.state_dict()
+
+    first, last, averaged = trained(1, 0.0), trained(6, 0.0), trained(6, 1.0 - 1e-9)
+    assert max((last[k] - first[k]).abs().max().item() for k in start) > 1e-2
+    assert max((averaged[k] - first[k]).abs().max().item() for k in start) < 1e-6
 
 
 def test_short_levers_keep_their_observed_angles(test_clip):
