@@ -214,6 +214,24 @@ def mirror_rows(layout: Layout, names) -> tuple[np.ndarray, np.ndarray]:
     return perm, sign
 
 
+def reverse_time(image: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The image (F, H) and mask (F, H) of the take played backwards, exactly: frames in
+    reverse order; a frame's floor step and turn are those of the original's next frame
+    negated, the step turned into this frame's heading (frame 0 gets none). Its own
+    inverse."""
+    out, m = image[::-1].copy(), mask[::-1].copy()
+    nxt = image[:0:-1, -TAIL_ROWS:]                     # original frames F-1 .. 1
+    turn = nxt[:, 2]
+    c, s = np.cos(turn), np.sin(turn)
+    out[0, -TAIL_ROWS:] = 0.0
+    out[1:, -3] = -(c * nxt[:, 0] + s * nxt[:, 1])      # -rot_y(turn) @ (x, 0, z)
+    out[1:, -2] = -(-s * nxt[:, 0] + c * nxt[:, 1])
+    out[1:, -1] = -turn
+    m[0, -TAIL_ROWS:] = m[0, 0]
+    m[1:, -TAIL_ROWS:] = mask[:0:-1, -TAIL_ROWS:]
+    return out, m
+
+
 def pad_time(image: np.ndarray, mask: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray]:
     """Image (F, H) and mask (F, H) extended to ``frames`` frames by reflecting the clip
     at its end (time runs backwards there, so the velocity rows change sign)."""
