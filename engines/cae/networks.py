@@ -27,6 +27,8 @@ autoencoder does not learn here. Leaky ReLU slope 0.2.
 
 from __future__ import annotations
 
+import copy
+
 import torch
 from torch import nn
 
@@ -60,17 +62,36 @@ class ImageNet(nn.Module):
         he_init(self)
         if self.channels_last:
             self.to(memory_format=torch.channels_last)
+        self._drop_bf16_body()
+
+    def _drop_bf16_body(self) -> None:
+        self.__dict__["_bf16_body"] = None  # not a registered submodule: never saved
+
+    def train(self, mode: bool = True) -> "ImageNet":
+        self._drop_bf16_body()  # the weights may change from here
+        return super().train(mode)
+
+    def load_state_dict(self, *args, **kwargs):
+        self._drop_bf16_body()
+        return super().load_state_dict(*args, **kwargs)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """(B, 2, H, T) -> (B, H, T); H is padded (last row repeated) to a multiple of
-        ``row_multiple`` inside and cropped again, T must be a multiple of ``time_multiple``."""
+        ``row_multiple`` inside and cropped again, T must be a multiple of ``time_multiple``.
+        In eval mode the bf16 body is a copy cast once (autocast casts the weights on
+        every call; same result, about 3 % of a clean faster)."""
         H = x.shape[2]
         if H % self.row_multiple:
             x = nn.functional.pad(x, (0, 0, 0, -H % self.row_multiple), mode="replicate")
         if self.channels_last:
             x = x.contiguous(memory_format=torch.channels_last)
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.bf16):
-            h = self.body(x)
+        if self.bf16 and not self.training:
+            if self._bf16_body is None:
+                self.__dict__["_bf16_body"] = copy.deepcopy(self.body).to(torch.bfloat16)
+            h = self._bf16_body(x.to(torch.bfloat16))
+        else:
+            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=self.bf16):
+                h = self.body(x)
         return self.head(h.float())[:, 0, :H]
 
 

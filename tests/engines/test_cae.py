@@ -345,3 +345,24 @@ def test_time_reversal_is_the_image_of_the_take_played_backwards(walk):
     again, again_mask = reverse_time(back, back_mask)
     np.testing.assert_allclose(again, image, atol=1e-12)
     np.testing.assert_array_equal(again_mask, mask)
+
+
+def test_eval_forward_casts_the_weights_once_and_follows_new_ones():
+    """In eval mode the bf16 body is a cached copy: same output as autocast, and rebuilt
+    when weights are loaded or training resumes."""
+    from engines.cae.networks import KaufmannNet
+
+    net = KaufmannNet().eval()
+    x = torch.randn(2, 2, 64, 64)
+
+    def autocast_forward():
+        with torch.autocast("cpu", dtype=torch.bfloat16):
+            h = net.body(x.contiguous(memory_format=torch.channels_last))
+        return net.head(h.float())[:, 0]
+
+    with torch.inference_mode():
+        torch.testing.assert_close(net(x), autocast_forward(), rtol=0, atol=0)
+    net.load_state_dict({k: v * 1.5 for k, v in net.state_dict().items()})
+    with torch.inference_mode():
+        torch.testing.assert_close(net(x), autocast_forward(), rtol=0, atol=0)
+    assert not any("bf16" in k for k in net.state_dict())
