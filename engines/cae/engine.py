@@ -19,7 +19,7 @@ Cleaning a take (Observation -> Motion):
    (training mirrors half the windows and never plays them backwards), so the
    completions differ and their mean is the better one, and the result is symmetric
    (exactly, but for a second-order turn of the reversed floor steps). Test split,
-   60-frame gap: one view 3.70 cm, two (mirror) 3.61, four 3.52; 120-frame gap 5.59,
+   60-frame gap: one view 3.67 cm, two (mirror) 3.61, four 3.52; 120-frame gap 5.50,
    5.35, 5.29. The batch of four runs on both cores in about the time two took on
    one.
 3. The root's floor trajectory is the observed one where the root is observed and the
@@ -36,8 +36,8 @@ Cleaning a take (Observation -> Motion):
    (the miss's own fast wobble is the network's, to be kept), its smoothing ratio by
    the risk estimate on the miss. The result keeps the observation's course and sheds
    its noise: the autoencoder's bottleneck loses a few cm of every pose (test split,
-   no corruption: 4.2 cm, anchored 0.02 cm), a noisy root makes its velocity rows
-   10-20 training deviations wrong (``spatial:1.5``: 10.2 cm, anchored 1.9 cm), and a
+   no corruption: 3.9 cm, anchored 0.02 cm), a noisy root makes its velocity rows
+   10-20 training deviations wrong (``spatial:1.5``: 9.4 cm, anchored 1.9 cm), and a
    filled gap joins its ends. ``anchor=false`` returns the network's output as it is, as
    in the paper. Observed frames change slightly either way. Joints whose children all
    sit within ``short_lever_cm`` of them (5 cm; CMU: the hands and finger bases) are not
