@@ -78,7 +78,7 @@ def interpolate_gaps(X: np.ndarray, observed: np.ndarray, kind: str = "linear") 
     for cols in _same_mask_groups(observed, missing_cols):
         o = observed[:, cols[0]]
         tt = t[~o]
-        vals = np.stack([np.interp(tt, t[o], X[o, c]) for c in cols], axis=1)  # holds the ends
+        vals = _bridge_linearly(t[o], X[np.ix_(o, cols)], tt)  # holds the ends
         if o.sum() >= 4:
             spline = CubicSpline(t[o], X[np.ix_(o, cols)], bc_type="natural", axis=0)
             inside = (tt > t[o][0]) & (tt < t[o][-1])
