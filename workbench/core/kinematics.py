@@ -46,27 +46,35 @@ def forward_kinematics(
     return P, R
 
 
-def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
-    """Descendants whose positions joint j's rotation fixes, and their offsets in j's
-    frame: (n, 3), or (F, n, 3) when a child was looked through (they vary over frames).
-
-    A child with a zero offset sits on j itself and says nothing about j's rotation: look
-    through it to its own children, assuming its reference local rotation.
-    """
+def aimed_descendants(skeleton: Skeleton, j: int) -> list[tuple[int, tuple[int, ...]]]:
+    """The descendants whose positions joint j's rotation fixes, each with the zero-offset
+    joints on the way from j to it (outermost first). A child with a zero offset sits on
+    j itself and says nothing about j's rotation: the walk looks through it to its own
+    children."""
     children = skeleton.children
+    out: list[tuple[int, tuple[int, ...]]] = []
+    stack = [(c, ()) for c in children[j]]
+    while stack:
+        c, via = stack.pop()
+        if np.linalg.norm(skeleton.offsets[c]) > 1e-9:
+            out.append((c, via))
+        else:
+            stack.extend((g, via + (c,)) for g in children[c])
+    return out
+
+
+def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """:func:`aimed_descendants` of j and their offsets in j's frame, the looked-through
+    joints at their reference local rotations: (n, 3), or (F, n, 3) when a child was
+    looked through (they vary over frames)."""
     ids: list[int] = []
     vecs: list[np.ndarray] = []
-    stack = [(c, None, np.zeros(3)) for c in children[j]]  # rotation None: identity
-    while stack:
-        c, R_acc, base = stack.pop()
-        offset = skeleton.offsets[c]
-        vec = base + (offset if R_acc is None else R_acc @ offset)
-        if np.linalg.norm(offset) > 1e-9:
-            ids.append(c)
-            vecs.append(vec)
-        else:
-            R_c = R_ref_local[:, c] if R_acc is None else R_acc @ R_ref_local[:, c]
-            stack.extend((g, R_c, vec) for g in children[c])
+    for c, via in aimed_descendants(skeleton, j):
+        vec = skeleton.offsets[c]
+        for v in reversed(via):
+            vec = (R_ref_local[:, v] @ vec[..., None])[..., 0]
+        ids.append(c)
+        vecs.append(vec)
     return ids, (np.stack(np.broadcast_arrays(*vecs), axis=-2) if vecs else np.zeros((0, 3)))
 
 
