@@ -74,7 +74,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import interpolate_gaps
-from workbench.core.kinematics import aimed_descendants, forward_kinematics, inverse_kinematics, local_rotations
+from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError
@@ -365,11 +365,11 @@ class ConvAutoencoderEngine(Engine):
 
 
 def short_lever_joints(skeleton: Skeleton, lever_cm: float) -> np.ndarray:
-    """Indices of the joints with a rotation whose :func:`aimed_descendants` (the nearest
-    descendants off their own position) all lie within ``lever_cm``."""
+    """Indices of the joints with a rotation whose ``skeleton.aimed_descendants`` (the
+    nearest descendants off their own position) all lie within ``lever_cm``."""
     out = []
     for j in np.flatnonzero(skeleton.has_rotation):
-        reach = [np.linalg.norm(skeleton.offsets[c]) * skeleton.unit_cm for c, _ in aimed_descendants(skeleton, j)]
+        reach = [np.linalg.norm(skeleton.offsets[c]) * skeleton.unit_cm for c, _ in skeleton.aimed_descendants[j]]
         if reach and max(reach) < lever_cm:
             out.append(int(j))
     return np.array(out, int)

@@ -46,30 +46,13 @@ def forward_kinematics(
     return P, R
 
 
-def aimed_descendants(skeleton: Skeleton, j: int) -> list[tuple[int, tuple[int, ...]]]:
-    """The descendants whose positions joint j's rotation fixes, each with the zero-offset
-    joints on the way from j to it (outermost first). A child with a zero offset sits on
-    j itself and says nothing about j's rotation: the walk looks through it to its own
-    children."""
-    children = skeleton.children
-    out: list[tuple[int, tuple[int, ...]]] = []
-    stack = [(c, ()) for c in children[j]]
-    while stack:
-        c, via = stack.pop()
-        if np.linalg.norm(skeleton.offsets[c]) > 1e-9:
-            out.append((c, via))
-        else:
-            stack.extend((g, via + (c,)) for g in children[c])
-    return out
-
-
 def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
-    """:func:`aimed_descendants` of j and their offsets in j's frame, the looked-through
+    """``skeleton.aimed_descendants[j]`` and their offsets in j's frame, the looked-through
     joints at their reference local rotations: (n, 3), or (F, n, 3) when a child was
     looked through (they vary over frames)."""
     ids: list[int] = []
     vecs: list[np.ndarray] = []
-    for c, via in aimed_descendants(skeleton, j):
+    for c, via in skeleton.aimed_descendants[j]:
         vec = skeleton.offsets[c]
         for v in reversed(via):
             vec = (R_ref_local[:, v] @ vec[..., None])[..., 0]

@@ -79,23 +79,45 @@ class Skeleton:
         rot = [c[0] for c in self.channels[j] if c in ROTATION_CHANNELS]
         return "".join(rot) if rot else "ZYX"
 
-    @property
+    # The layout below is built once per skeleton: FK, IK and every clean look it up.
+    @cached_property
     def rotation_orders(self) -> tuple[str, ...]:
         return tuple(self.rotation_order(j) for j in range(self.n_joints))
 
-    @property
+    @cached_property
     def has_rotation(self) -> np.ndarray:
-        """(J,) bool: the joint has rotation channels in the file."""
-        return np.array([any(c in ROTATION_CHANNELS for c in ch) for ch in self.channels])
+        """(J,) bool, read-only: the joint has rotation channels in the file."""
+        out = np.array([any(c in ROTATION_CHANNELS for c in ch) for ch in self.channels])
+        out.setflags(write=False)
+        return out
 
     @cached_property
     def children(self) -> tuple[tuple[int, ...], ...]:
-        """Each joint's child indices (built once: IK and tree walks look them up often)."""
+        """Each joint's child indices."""
         kids: list[list[int]] = [[] for _ in self.names]
         for j, p in enumerate(self.parents):
             if p >= 0:
                 kids[p].append(j)
         return tuple(tuple(k) for k in kids)
+
+    @cached_property
+    def aimed_descendants(self) -> tuple[tuple[tuple[int, tuple[int, ...]], ...], ...]:
+        """Per joint j, the descendants whose positions j's rotation fixes, each with the
+        zero-offset joints on the way from j to it (outermost first). A child with a zero
+        offset sits on j itself and says nothing about j's rotation: the walk looks
+        through it to its own children."""
+        out = []
+        for j in range(self.n_joints):
+            aimed: list[tuple[int, tuple[int, ...]]] = []
+            stack = [(c, ()) for c in self.children[j]]
+            while stack:
+                c, via = stack.pop()
+                if np.linalg.norm(self.offsets[c]) > 1e-9:
+                    aimed.append((c, via))
+                else:
+                    stack.extend((g, via + (c,)) for g in self.children[c])
+            out.append(tuple(aimed))
+        return tuple(out)
 
     def index(self, name: str) -> int:
         try:
