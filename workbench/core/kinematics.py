@@ -90,28 +90,28 @@ def inverse_kinematics(
     root_positions = positions[:, 0] - skeleton.offsets[0]
     solved = []  # joints aimed at their children; the others keep the reference's angles
     for j, p in enumerate(skeleton.parents):
-        R_parent = np.broadcast_to(np.eye(3), (F, 3, 3)) if p < 0 else R_world[:, p]
+        R_parent = None if p < 0 else R_world[:, p]
         P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
-        R_guess = R_parent @ R_ref_local[:, j]
+        R_ref = R_ref_local[:, j]
         ids, vecs = _effective_children(skeleton, j, R_ref_local) if aimed[j] else ([], None)
         if not ids:
-            R_j = R_guess
-        else:
+            R_local[:, j] = R_ref
+        else:  # solved in the parent's frame: the reference is R_ref, the targets turned back
             solved.append(j)
             targets = positions[:, ids] - P[:, j][:, None]
+            if R_parent is not None:
+                targets = np.einsum("fji,fnj->fni", R_parent, targets)
             # One direction, or collinear ones: the smallest correction of the reference.
-            current = (R_guess @ vecs[..., 0, :, None])[..., 0]
-            R_j = vectors_to_rotation(current, targets[:, 0]) @ R_guess
+            current = (R_ref @ vecs[..., 0, :, None])[..., 0]
+            R_j = vectors_to_rotation(current, targets[:, 0]) @ R_ref
             if len(ids) > 1:
-                local_targets = np.einsum("fji,fnj->fni", R_parent, targets)
-                R_fit = R_parent @ kabsch(vecs, local_targets)
                 # spread: some child off the line of the first (sine of the angle > 1e-6)
                 lengths = np.linalg.norm(vecs, axis=-1)
                 sines = np.linalg.norm(np.cross(vecs[..., :1, :], vecs[..., 1:, :]), axis=-1)
                 spread = (sines > 1e-6 * lengths[..., :1] * lengths[..., 1:]).any(axis=-1)
-                R_j = np.where(spread[..., None, None], R_fit, R_j)
-        R_world[:, j] = R_j
-        R_local[:, j] = np.swapaxes(R_parent, -1, -2) @ R_j
+                R_j = np.where(spread[..., None, None], kabsch(vecs, targets), R_j)
+            R_local[:, j] = R_j
+        R_world[:, j] = R_local[:, j] if R_parent is None else R_parent @ R_local[:, j]
     angles = ref.copy()
     orders = skeleton.rotation_orders
     for order in set(orders[j] for j in solved):
