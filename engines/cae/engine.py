@@ -81,7 +81,7 @@ from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
-                             pad_time, reverse_time, rot_y, trajectory)
+                             pad_time, reverse_time, trajectory, turn_y)
 
 #: parameters that only change how a trained network is used (kept when loading weights)
 INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "mirror_average", "reverse_average")
@@ -357,9 +357,8 @@ class ConvAutoencoderEngine(Engine):
                                   f"joint index below {self.layout_.n_joints}")
             frames = np.asarray(frames, int)
             positions = np.asarray(positions, float).reshape(len(frames), 3)
-            Rt = np.swapaxes(rot_y(theta[frames]), -1, -2)
             rows = self.layout_.rows(j)
-            image[frames, rows] = np.einsum("fij,fj->fi", Rt, positions - ground[frames])
+            image[frames, rows] = turn_y(positions - ground[frames], -theta[frames])
             constrained[frames, rows] = True
         return image, mask | constrained, constrained
 
