@@ -58,16 +58,15 @@ def interpolate_gaps(X: np.ndarray, observed: np.ndarray, kind: str = "linear") 
     missing_cols = np.flatnonzero((~observed).any(axis=0) & observed.any(axis=0))
     if kind == "linear":
         # the columns missing exactly where the first one is (e.g. whole frames missing)
-        # are bridged in one step, the others one by one
+        # are bridged in one step at those frames, the others all together
         pattern = observed[:, missing_cols]
         shared = (pattern == pattern[:, :1]).all(axis=0)
         if shared.sum() > 1:
             o, cols = pattern[:, 0], missing_cols[shared]
             out[np.ix_(~o, cols)] = _bridge_linearly(t[o], X[np.ix_(o, cols)], t[~o])
             missing_cols = missing_cols[~shared]
-        for c in missing_cols:
-            o = observed[:, c]
-            out[~o, c] = np.interp(t[~o], t[o], X[o, c])
+        if missing_cols.size:
+            out[:, missing_cols] = _bridge_columns(X[:, missing_cols], observed[:, missing_cols])
         return out
     if kind != "cubic":
         raise ValueError(f"unknown interpolation kind {kind!r}: use 'linear' or 'cubic'")
@@ -97,6 +96,25 @@ def _bridge_linearly(known: np.ndarray, values: np.ndarray, at: np.ndarray) -> n
     left = right - 1
     w = np.clip((at - known[left]) / (known[right] - known[left]), 0.0, 1.0)[:, None]
     return values[left] * (1.0 - w) + values[right] * w
+
+
+def _bridge_columns(X: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """Columns (F, C), each observed at least once, with their missing samples interpolated
+    linearly between the observed samples around them and the end values held outside
+    them, each column on its own mask: what ``np.interp`` does per column, for all at
+    once (the observed frames around each sample are running maxima and minima of frame
+    indices)."""
+    F, C = X.shape
+    t = np.arange(F)[:, None]
+    before = np.maximum.accumulate(np.where(observed, t, -1), axis=0)
+    after = np.minimum.accumulate(np.where(observed, t, F)[::-1], axis=0)[::-1]
+    before = np.where(before < 0, after, before)   # before the first observation: hold it
+    after = np.where(after >= F, before, after)    # after the last: hold it
+    flat, col = X.ravel(), np.arange(C)
+    a, b = flat[before * C + col], flat[after * C + col]
+    span = (after - before).astype(float)
+    w = (t - before) / np.where(span > 0, span, 1.0)
+    return np.where(observed, X, a + (b - a) * w)
 
 
 def _same_mask_groups(observed: np.ndarray, cols: np.ndarray) -> list[np.ndarray]:
