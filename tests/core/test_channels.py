@@ -45,3 +45,26 @@ def test_linear_gap_filling_of_whole_frames_matches_np_interp(missing):
     for c in range(5):
         o = observed[:, c]
         np.testing.assert_allclose(out[:, c], np.interp(t, t[o], X[o, c]), atol=1e-12)
+
+
+def test_linear_gap_filling_of_scattered_masks_matches_np_interp():
+    """Every column on a mask of its own (dropped samples, ends missing, a column never
+    observed, one observed once): np.interp's result per column, ends held, 0 where
+    never observed, NaNs in the missing samples never leak."""
+    rng = np.random.default_rng(1)
+    for F, D, keep in ((30, 6, 0.5), (7, 4, 0.2), (50, 9, 0.9)):
+        X = rng.normal(size=(F, D))
+        observed = rng.random((F, D)) < keep
+        observed[:, 0] = False
+        observed[:, 1] = False
+        observed[F // 2, 1] = True
+        observed[:, 2] = True
+        observed[F // 3 + 1:, 3] = False
+        X[~observed] = np.nan
+        out = interpolate_gaps(X, observed)
+        t = np.arange(F)
+        assert np.all(out[:, 0] == 0.0)
+        for c in range(1, D):
+            o = observed[:, c]
+            expected = np.interp(t, t[o], X[o, c]) if o.any() else np.zeros(F)
+            np.testing.assert_allclose(out[:, c], expected, atol=1e-12)
