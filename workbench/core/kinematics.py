@@ -50,15 +50,17 @@ def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> 
     """``skeleton.aimed_descendants[j]`` and their offsets in j's frame, the looked-through
     joints at their reference local rotations: (n, 3), or (F, n, 3) when a child was
     looked through (they vary over frames)."""
-    ids: list[int] = []
-    vecs: list[np.ndarray] = []
-    for c, via in skeleton.aimed_descendants[j]:
+    aimed = skeleton.aimed_descendants[j]
+    ids = [c for c, _ in aimed]
+    if not any(via for _, via in aimed):  # the common case: the children's own offsets
+        return ids, skeleton.offsets[ids]
+    vecs = []
+    for c, via in aimed:
         vec = skeleton.offsets[c]
         for v in reversed(via):
             vec = (R_ref_local[:, v] @ vec[..., None])[..., 0]
-        ids.append(c)
         vecs.append(vec)
-    return ids, (np.stack(np.broadcast_arrays(*vecs), axis=-2) if vecs else np.zeros((0, 3)))
+    return ids, np.stack(np.broadcast_arrays(*vecs), axis=-2)
 
 
 def inverse_kinematics(
