@@ -11,17 +11,19 @@ Cleaning a take (Observation -> Motion):
 2. The clip is reflected at its end to a multiple of 32 frames, normalised with the
    training statistics, unknown entries bridged or zeroed (``input_fill``), the mask
    added as a second channel, and the network predicts the whole image in one pass;
-   the padding is cropped. With ``mirror_average`` and ``reverse_average`` (our
-   additions; both on by default) the take's views under the symmetries of motion,
-   mirrored left/right, played backwards and both
-   (:func:`.representation.reverse_time`), are completed in the same batch, mapped back
-   and averaged with it. The network learnt these symmetries only approximately
-   (training mirrors half the windows and never plays them backwards), so the
-   completions differ and their mean is the better one, and the result is symmetric
-   (exactly, but for a second-order turn of the reversed floor steps). Test split,
-   60-frame gap: one view 3.67 cm, two (mirror) 3.61, four 3.52; 120-frame gap 5.50,
-   5.35, 5.29. The batch of four runs on both cores in about the time two took on
-   one.
+   the padding is cropped. With ``views`` > 1 (our addition) the take's views under
+   the symmetries of motion, in this order mirrored left/right, played backwards
+   (:func:`.representation.reverse_time`) and both, are completed in the same batch,
+   mapped back and averaged with it. The network learnt these symmetries only
+   approximately (training mirrors half the windows and never plays them backwards),
+   so the completions differ and their mean is the better one. With all four views the
+   result is itself symmetric (exactly, but for a second-order turn of the reversed
+   floor steps). Three views (the default) were chosen on validation (subjects 05/06
+   held out, two training seeds): as good as four on gaps (60 frames 2.89 and 2.92 cm
+   against 2.95 and 2.87; 120 frames 6.74 and 6.51 against 6.75 and 6.58), 1 % worse
+   under noise and dropped joints, and a quarter of the network's work cheaper. Test
+   split, 60-frame gap, one to four views: 3.67, 3.61, 3.52, 3.52 cm; 120-frame gap
+   5.50, 5.35, 5.22, 5.29.
 3. The root's floor trajectory is the observed one where the root is observed and the
    predicted velocities integrated across the gaps (attached to the known frames at
    both ends); the image on that trajectory gives the raw network positions
@@ -37,16 +39,16 @@ Cleaning a take (Observation -> Motion):
    the risk estimate on the miss. The result keeps the observation's course and sheds
    its noise: the autoencoder's bottleneck loses a few cm of every pose (test split,
    no corruption: 3.9 cm, anchored 0.02 cm), a noisy root makes its velocity rows
-   10-20 training deviations wrong (``spatial:1.5``: 9.4 cm, anchored 1.9 cm), and a
+   10-20 training deviations wrong (``spatial:1.5``: 9.2 cm, anchored 1.9 cm), and a
    filled gap joins its ends. ``anchor=false`` returns the network's output as it is, as
    in the paper. Observed frames change slightly either way. Joints whose children all
    sit within ``short_lever_cm`` of them (5 cm; CMU: the hands and finger bases) are not
    aimed from positions, where a few mm of error turn a 3-cm lever by tens of degrees:
    they keep their observed angles (noise and all), bridged linearly across the holes,
    as ``lerp`` does; IK aims them only when they are never observed. Test split, RMS
-   angle error: no corruption 1.35 -> 0.53 degrees, 60-frame gap 3.72 -> 2.19,
-   ``drop:0.5`` 10.9 -> 3.8; under position noise, which makes the observed hand angles
-   noisy too, ``spatial:1.5`` 7.9 -> 8.1.
+   angle error: no corruption 0.089 -> 0.042 degrees, 60-frame gap 2.28 -> 1.71,
+   ``drop:0.5`` 10.3 -> 3.3; under position noise, which makes the observed hand angles
+   noisy too, ``spatial:1.5`` 6.3 -> 8.0.
    With ``keep_observed=true`` the observed angles and root positions come back
    exactly: the miss is added in full at the known entries (not smoothed), so the
    filled stretch joins the kept frames without a jump; IK then aims the missing
@@ -84,7 +86,9 @@ from .representation import (Layout, decode, encode, heading, image_mask, mirror
                              pad_time, reverse_time, trajectory, turn_y)
 
 #: parameters that only change how a trained network is used (kept when loading weights)
-INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "mirror_average", "reverse_average")
+INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "views")
+#: the views' symmetries, (mirrored, reversed), in the order ``views`` takes them
+VIEWS = ((False, False), (True, False), (False, True), (True, True))
 
 Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
 
@@ -108,9 +112,9 @@ class TrainingParams:
     (training and inference).
     ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
     to the observation; ``short_lever_cm``: joints whose children lie closer keep their
-    observed angles, 0 for none; ``mirror_average`` and ``reverse_average``: average the
-    completions of the take and of its left/right mirror and/or of it played backwards
-    (all: the module docstring)."""
+    observed angles, 0 for none; ``views``: how many of :data:`VIEWS` (the take, its
+    left/right mirror, the take played backwards, the mirror played backwards) are
+    completed and averaged (all: the module docstring)."""
 
     epochs: int = 120
     frames_per_epoch: int = 100_000
@@ -133,14 +137,15 @@ class TrainingParams:
     keep_observed: bool = False
     anchor: bool = True
     short_lever_cm: float = 5.0
-    mirror_average: bool = True
-    reverse_average: bool = True
+    views: int = 3
 
     def __post_init__(self) -> None:
         if self.input_fill not in ("zero", "linear"):
             raise ValueError(f"input_fill must be 'zero' or 'linear', got {self.input_fill!r}")
         if self.sampling not in ("frames", "clips"):
             raise ValueError(f"sampling must be 'frames' or 'clips', got {self.sampling!r}")
+        if self.views not in range(1, len(VIEWS) + 1):
+            raise ValueError(f"views must be 1 to {len(VIEWS)}, got {self.views}")
         if not (np.isfinite(self.short_lever_cm) and self.short_lever_cm >= 0):
             raise ValueError(f"short_lever_cm must be 0 (off) or a positive length in cm, got {self.short_lever_cm}")
 
@@ -235,8 +240,11 @@ class ConvAutoencoderEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from engines.torch_support import load_module_arrays
 
-        # older weights saw zeroed holes and ended on their last step's weights
+        # older weights saw zeroed holes and ended on their last step's weights, and
+        # recorded the view averaging of their day as two switches (now ``views``)
         saved = {"input_fill": "zero", "ema_decay": 0.0, **manifest.get("params", {})}
+        for legacy in ("mirror_average", "reverse_average"):
+            saved.pop(legacy, None)
         saved.update({k: getattr(self.params, k) for k in INFERENCE_PARAMS})
         try:
             self.params = self.Params(**saved)
@@ -255,11 +263,11 @@ class ConvAutoencoderEngine(Engine):
 
     # -- cleaning -------------------------------------------------------------------
     def complete(self, image: np.ndarray, mask: np.ndarray, mirror: tuple[np.ndarray, np.ndarray] | None = None,
-                 reverse: bool = False) -> np.ndarray:
-        """The network's completion (F, H) of a raw image (F, H) known where ``mask``. With
-        ``mirror`` (the row permutation and signs of :func:`.representation.mirror_rows`)
-        and/or ``reverse``, the mean of the completions of the take's views under those
-        symmetries (mirrored, played backwards, both), each mapped back; one batch."""
+                 views: int = 1) -> np.ndarray:
+        """The network's completion (F, H) of a raw image (F, H) known where ``mask``: the
+        mean of the completions of the first ``views`` of :data:`VIEWS`, each mapped back;
+        one batch. ``mirror``: the row permutation and signs of
+        :func:`.representation.mirror_rows`, needed for the mirrored views."""
         import torch
 
         from engines.torch_support import default_threads, torch_threads
@@ -267,24 +275,25 @@ class ConvAutoencoderEngine(Engine):
         from .training import network_input
 
         F = image.shape[0]
-        views = [(image, mask, False, False)]
-        if mirror is not None:
-            perm, sign = mirror
-            views.append((image[:, perm] * sign, mask[:, perm], True, False))
-        if reverse:
-            views += [(*reverse_time(x, m), mirrored, True) for x, m, mirrored, _ in views]
+        if views > 1 and mirror is None:
+            raise ValueError("the mirrored views need the mirror's rows and signs (mirror_rows)")
+        perm, sign = mirror if mirror is not None else (None, None)
+        batch = []  # (image, mask, mirrored, reversed) of each view
+        for mirrored, reversed_ in VIEWS[:views]:
+            x, m = (image[:, perm] * sign, mask[:, perm]) if mirrored else (image, mask)
+            batch.append((*(reverse_time(x, m) if reversed_ else (x, m)), mirrored, reversed_))
         frames = -(-F // self.net_.time_multiple) * self.net_.time_multiple
-        padded = [pad_time(x, m, frames) for x, m, _, _ in views]
+        padded = [pad_time(x, m, frames) for x, m, _, _ in batch]
         X, M = np.stack([x for x, _ in padded]), np.stack([m for _, m in padded])
         x = network_input((X - self.mean_) / self.std_, M, self.params.input_fill)
         with torch_threads(default_threads()), torch.inference_mode():
             Y = self.net_(x).numpy()[..., :F].transpose(0, 2, 1) * self.std_ + self.mean_
         total = np.zeros_like(image)
-        for y, (_, m, mirrored, reversed_) in zip(Y, views):
+        for y, (_, m, mirrored, reversed_) in zip(Y, batch):
             if reversed_:
                 y = reverse_time(y, m)[0]
             total += y[:, perm] * sign if mirrored else y
-        return total / len(views)
+        return total / len(batch)
 
     def clean(self, observation: Observation, /, *, constraints: Constraints | None = None) -> CleanResult:
         """Fill the gaps of (and denoise) ``observation``; ``constraints`` maps a joint index
@@ -303,14 +312,14 @@ class ConvAutoencoderEngine(Engine):
         observed[:, self.constant_] = True
         known = ~position_unknown(observed, layout.parents)
         image, mask = encode(layout, P, theta), image_mask(layout, known)
-        mirror = mirror_rows(layout, skeleton.names) if self.params.mirror_average else None
-        out = self.complete(image, mask, mirror, self.params.reverse_average)
+        mirror = mirror_rows(layout, skeleton.names) if self.params.views > 1 else None
+        out = self.complete(image, mask, mirror, self.params.views)
         ground, theta = trajectory(out, known[:, 0], ground, theta)
         exact = mask.copy() if self.params.keep_observed else np.zeros_like(mask)
         if constraints:  # a second pass, on the first one's trajectory
             image, mask, constrained = self._constrain(image, mask, constraints, ground, theta)
             exact |= constrained
-            out = self.complete(image, mask, mirror, self.params.reverse_average)
+            out = self.complete(image, mask, mirror, self.params.views)
         raw = decode(layout, out, ground, theta)
         target = raw
         if exact.any() or self.params.anchor:

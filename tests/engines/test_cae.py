@@ -265,6 +265,22 @@ def test_weights_saved_before_input_fill_and_ema_load_as_trained(tiny_fit, tmp_p
     assert loaded.input_fill == "zero" and loaded.ema_decay == 0.0
 
 
+def test_weights_saved_with_the_view_switches_load_with_the_views_asked_for(tiny_fit, tmp_path):
+    """Manifests written before ``views`` recorded ``mirror_average`` and
+    ``reverse_average``; they load, and the engine uses the views it was created with."""
+    import json
+
+    engine, _ = tiny_fit
+    manifest = engine.save(tmp_path)
+    data = json.loads(manifest.read_text())
+    del data["params"]["views"]
+    data["params"].update(mirror_average=True, reverse_average=False)
+    manifest.write_text(json.dumps(data))
+    assert CAE(CAE.Params(views=4)).load(tmp_path).params.views == 4
+    with pytest.raises(ValueError, match="views"):
+        CAE.Params(views=5)
+
+
 def test_ema_keeps_the_average_of_the_steps_weights():
     """With ema_decay, training ends on the moving average of the weights, not the last
     step's; the average starts at the first step, so a decay near 1 stays there."""
@@ -322,14 +338,16 @@ def test_view_averages_are_symmetric(trained, test_clip):
     mask = np.ones_like(image, bool)
     mask[100:160] = False
     perm, sign = mirror = mirror_rows(layout, test_clip.skeleton.names)
-    for used, symmetric in (((mirror, True), True), ((None, False), False)):
-        direct = engine.complete(image, mask, *used)
-        via_mirror = engine.complete(image[:, perm] * sign, mask[:, perm], *used)[:, perm] * sign
+    for views, symmetric in ((4, True), (3, False), (1, False)):
+        direct = engine.complete(image, mask, mirror, views)
+        via_mirror = engine.complete(image[:, perm] * sign, mask[:, perm], mirror, views)[:, perm] * sign
         assert np.allclose(direct, via_mirror, atol=1e-9) == symmetric
         back, back_mask = reverse_time(image, mask)
-        via_reverse = reverse_time(engine.complete(back, back_mask, *used), back_mask)[0]
+        via_reverse = reverse_time(engine.complete(back, back_mask, mirror, views), back_mask)[0]
         assert np.allclose(direct[:, :-3], via_reverse[:, :-3], atol=1e-9) == symmetric
         assert np.allclose(direct[1:, -3:], via_reverse[1:, -3:], atol=1e-3) or not symmetric
+    with pytest.raises(ValueError, match="mirror"):
+        engine.complete(image, mask, None, 2)
 
 
 def test_time_reversal_is_the_image_of_the_take_played_backwards(walk):
