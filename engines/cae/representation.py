@@ -221,12 +221,11 @@ def reverse_time(image: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.nd
     inverse."""
     out, m = image[::-1].copy(), mask[::-1].copy()
     nxt = image[:0:-1, -TAIL_ROWS:]                     # original frames F-1 .. 1
-    turn = nxt[:, 2]
-    c, s = np.cos(turn), np.sin(turn)
+    step = np.zeros((len(nxt), 3))
+    step[:, [0, 2]] = nxt[:, :2]
     out[0, -TAIL_ROWS:] = 0.0
-    out[1:, -3] = -(c * nxt[:, 0] + s * nxt[:, 1])      # -turn_y((x, 0, z), turn)
-    out[1:, -2] = -(-s * nxt[:, 0] + c * nxt[:, 1])
-    out[1:, -1] = -turn
+    out[1:, -3:-1] = -turn_y(step, nxt[:, 2])[:, [0, 2]]
+    out[1:, -1] = -nxt[:, 2]
     m[0, -TAIL_ROWS:] = m[0, 0]
     m[1:, -TAIL_ROWS:] = mask[:0:-1, -TAIL_ROWS:]
     return out, m
