@@ -78,7 +78,9 @@ def test_ik_without_reference_reaches_the_positions(walk, kick):
 @settings(max_examples=15, deadline=None)
 def test_ik_of_noisy_positions_keeps_bone_lengths_and_gets_close(walk, seed, sigma):
     """Property: for any noise, IK output has the skeleton's bone lengths exactly, and it
-    is no farther from the noisy targets than the clean pose is (it is a fit)."""
+    is no farther from the noisy targets than the clean pose hung from the same root
+    position is (it is a fit; the root sits at its noisy target, so the clean pose is
+    compared from there: from its own root it can be nearer, by up to 8 % at sigma 2)."""
     m = walk.slice(0, 40)
     rng = np.random.default_rng(seed)
     noisy = m.positions + rng.normal(scale=sigma, size=m.positions.shape)
@@ -87,8 +89,10 @@ def test_ik_of_noisy_positions_keeps_bone_lengths_and_gets_close(walk, seed, sig
     L = bone_lengths(fit.positions, m.skeleton.parents)
     assert np.allclose(L, np.linalg.norm(m.skeleton.offsets[1:], axis=1)[None], atol=1e-9)
     err_fit = np.linalg.norm(fit.positions - noisy, axis=2).mean()
-    err_clean = np.linalg.norm(m.positions - noisy, axis=2).mean()
-    assert err_fit <= err_clean * 1.05
+    hung = m.positions + (noisy[:, :1] - m.positions[:, :1])
+    assert np.allclose(fit.positions[:, 0], noisy[:, 0])
+    err_clean = np.linalg.norm(hung - noisy, axis=2).mean()
+    assert err_fit <= err_clean
 
 
 def test_motion_is_read_only_and_channels_round_trip(walk):
