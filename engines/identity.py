@@ -1,5 +1,6 @@
 """``identity``: the do-nothing reference. Returns the observation unchanged, with gaps
-bridged by linear interpolation of each channel over time (angles unwrapped first).
+bridged by linear interpolation of each channel over time (angles unwrapped first,
+robust to outliers: :func:`workbench.core.channels.unwrap_deg`).
 
 Shared helpers for the channel-matrix engines live here too: :func:`prepare` (the
 observation's channel matrix as given, its channel mask, and the matrix with angles
@@ -65,7 +66,7 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
     X = raw
     if wrapped.size:
         X = raw.copy()
-        X[:, wrapped] = unwrap_deg(raw[:, wrapped], mask[:, wrapped])
+        X[:, wrapped] = unwrap_deg(raw[:, wrapped], mask[:, wrapped], robust=True)
     if not complete:
         X = interpolate_gaps(X, mask, kind)
     return Prepared(raw, mask, X, wrapped, complete)

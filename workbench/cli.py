@@ -101,7 +101,7 @@ def cmd_corrupt(args) -> int:
     obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
     mask = channel_mask(obs.observed)
     X = obs.motion.channels
-    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:])
+    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:], robust=True)
     out = Path(args.output)
     mask_path = out.with_name(out.name + ".mask.json")
     write_bvh(out, obs.motion.with_channels(interpolate_gaps(X, mask)))

@@ -12,12 +12,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.core.channels import forward_fill, interpolate_gaps, rewrap_deg, unwrap_deg
+from workbench.core.channels import rewrap_deg, unwrap_deg
 from workbench.core.kinematics import inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
+from ..identity import bridge_gaps
 from ..smoothing import smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
@@ -57,30 +58,6 @@ class SpaceModel:
         """Share of the training energy the K kept bases hold."""
         K = self.bases.shape[1]
         return float(self.spectrum[:K].sum() / self.spectrum.sum())
-
-
-def unwrap_robust_deg(A: np.ndarray) -> np.ndarray:
-    """Unwrap finite angle columns (F, C) in degrees, robust to isolated outliers: each
-    sample is put within 180 degrees of the median of the three unwrapped samples before
-    it. (``np.unwrap`` follows every sample; an outlier near 180 degrees away from its
-    neighbours can then leave a spurious whole turn behind it for the rest of the take.)"""
-    out = np.array(A, dtype=float)
-    for t in range(1, out.shape[0]):
-        if t < 3:
-            ref = out[t - 1]
-        else:
-            a, b, c = out[t - 3], out[t - 2], out[t - 1]
-            ref = a + b + c - np.maximum(np.maximum(a, b), c) - np.minimum(np.minimum(a, b), c)
-        out[t] -= 360.0 * np.round((out[t] - ref) / 360.0)
-    return out
-
-
-def bridge_gaps_robust(raw: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """A channel matrix ``raw`` (F, 3 + 3J) with observed ``mask`` (F, 3 + 3J): angles
-    unwrapped by :func:`unwrap_robust_deg`, gaps linearly interpolated (finite)."""
-    X = np.array(raw, dtype=float)
-    X[:, 3:] = unwrap_robust_deg(forward_fill(X[:, 3:], mask[:, 3:]))
-    return interpolate_gaps(X, mask)
 
 
 def noise_std(u: np.ndarray, observed: np.ndarray) -> np.ndarray:
@@ -262,7 +239,7 @@ class MSSA(Engine):
         self.check_skeleton(skeleton)
         model = self.models_[self.params.space]
         raw, mask = observation.motion.channels, channel_mask(observation.observed)
-        X = bridge_gaps_robust(raw, mask)
+        X = bridge_gaps(observation)
         F = X.shape[0]
         if self.params.space == "angles":
             Y, observed = X, mask

@@ -1,11 +1,11 @@
-"""Channel helpers: retiming and gap distances."""
+"""Channel helpers: retiming, gap distances, gap filling and unwrapping."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from workbench.core.channels import gap_distance, interpolate_gaps, retime
+from workbench.core.channels import gap_distance, interpolate_gaps, retime, unwrap_deg
 
 
 def test_retime_plays_faster_and_slower_by_linear_interpolation():
@@ -68,3 +68,22 @@ def test_linear_gap_filling_of_scattered_masks_matches_np_interp():
             o = observed[:, c]
             expected = np.interp(t, t[o], X[o, c]) if o.any() else np.zeros(F)
             np.testing.assert_allclose(out[:, c], expected, atol=1e-12)
+
+
+def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
+    """A channel turning slowly through +-180 degrees; one sample 179.5 degrees off
+    (wrapped), with a gap after it. np.unwrap follows the outlier and the rest of the
+    take lands a whole turn away; the robust rule keeps it on its branch."""
+    truth = np.linspace(150.0, 230.0, 60)[:, None]                    # (60, 1), continuous
+    X = (truth + 180.0) % 360.0 - 180.0                               # wrapped to [-180, 180)
+    X[30] = (X[30] - 179.5 + 180.0) % 360.0 - 180.0                   # the outlier
+    observed = np.ones_like(X, bool)
+    observed[40:45] = False
+    plain = unwrap_deg(np.where(observed, X, np.nan), observed)
+    robust = unwrap_deg(np.where(observed, X, np.nan), observed, robust=True)
+    after = observed[:, 0] & (np.arange(60) > 30)
+    assert np.allclose(np.abs(plain[after] - truth[after]), 360.0)
+    assert np.allclose(robust[after] - truth[after], 0.0)
+    assert np.all(np.isnan(robust[~observed]))
+    clean = (truth + 180.0) % 360.0 - 180.0                           # without the outlier: as np.unwrap
+    assert np.array_equal(unwrap_deg(clean, robust=True), np.unwrap(clean, period=360.0, axis=0))

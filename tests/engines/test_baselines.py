@@ -212,6 +212,23 @@ def test_unwrap_deg_matches_numpy_unwrap():
     np.testing.assert_array_equal(ours, ref)
 
 
+def test_an_outlier_half_a_turn_off_leaves_no_whole_turn_in_the_smoothed_take(walk):
+    """A joint turning slowly through +-180 degrees with one sample 179.5 degrees off:
+    np.unwrap would put the rest of the take a whole turn away, and the smoother would
+    blur that step into up to 180 degrees of error around it; with the robust unwrap the
+    outlier is one sample, its weight in the kernel a few degrees."""
+    m = walk.slice(0, 120)
+    X = m.channels
+    truth = np.linspace(150.0, 230.0, m.n_frames)
+    X[:, 3 + 3 * 5] = (truth + 180.0) % 360.0 - 180.0
+    clean = m.with_channels(X)
+    X[60, 3 + 3 * 5] = (X[60, 3 + 3 * 5] - 179.5 + 180.0) % 360.0 - 180.0
+    out = create("gaussian").clean(Observation(m.with_channels(X))).motion.channels[:, 3 + 3 * 5]
+    ref = create("gaussian").clean(Observation(clean)).motion.channels[:, 3 + 3 * 5]
+    err = np.abs((out - ref + 180.0) % 360.0 - 180.0)
+    assert err.max() < 15.0
+
+
 # -- gaussian -------------------------------------------------------------------------
 def _one_channel(motion: Motion, values: np.ndarray, joint: int = 7, k: int = 1) -> Motion:
     X = motion.channels

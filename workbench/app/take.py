@@ -109,7 +109,7 @@ def bridged(observation: Observation) -> Motion:
 
     mask = channel_mask(observation.observed)
     X = observation.motion.channels
-    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:])
+    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:], robust=True)
     return observation.motion.with_channels(interpolate_gaps(X, mask))
 
 

@@ -23,19 +23,37 @@ def forward_fill(X: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return out
 
 
-def unwrap_deg(X: np.ndarray, observed: np.ndarray | None = None) -> np.ndarray:
-    """Unwrap angle columns (F, D) along time so consecutive observed samples differ by
-    less than 180 degrees. Missing samples stay missing (NaN)."""
+def unwrap_deg(X: np.ndarray, observed: np.ndarray | None = None, *, robust: bool = False) -> np.ndarray:
+    """Unwrap angle columns (F, D) along time: each sample is put within 180 degrees of
+    the one before (``np.unwrap``) or, ``robust``, of the median of the three unwrapped
+    samples before it (of the one before, in the first three frames). ``np.unwrap``
+    follows every sample, so one outlier near 180 degrees away from its neighbours can
+    leave a whole turn behind it for the rest of the take, which a smoother then blurs
+    into up to 180 degrees of error around it; the robust rule keeps the take on its
+    branch. Observations are unwrapped robustly; clean takes (training data, the
+    corruption models' channel statistics) with ``np.unwrap``. Columns whose consecutive
+    samples all differ by less than 180 degrees come back as they are. Missing samples
+    stay missing (NaN); the others are unwrapped as if each gap held the last observed
+    value."""
     X = np.asarray(X, float)
     if observed is None:
         observed = np.isfinite(X)
     observed = np.asarray(observed, bool)
     complete = bool(observed.all())
     filled = X.copy() if complete else forward_fill(X, observed)
-    # np.unwrap only changes columns with a step of 180 degrees or more: skip the others
     steps = np.abs(np.diff(filled, axis=0)) >= 180.0
     cols = np.flatnonzero(steps.any(axis=0))
-    if cols.size:
+    if cols.size and robust:
+        out = filled[:, cols]
+        for t in range(1, out.shape[0]):
+            if t < 3:
+                ref = out[t - 1]
+            else:
+                a, b, c = out[t - 3], out[t - 2], out[t - 1]
+                ref = a + b + c - np.maximum(np.maximum(a, b), c) - np.minimum(np.minimum(a, b), c)
+            out[t] -= 360.0 * np.round((out[t] - ref) / 360.0)
+        filled[:, cols] = out
+    elif cols.size:
         filled[:, cols] = np.unwrap(filled[:, cols], period=360.0, axis=0)
     if not complete:
         filled[~observed] = np.nan
