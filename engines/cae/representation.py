@@ -100,11 +100,13 @@ def wrap(angle: np.ndarray) -> np.ndarray:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def encode(layout: Layout, positions: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """The image (F, H) of world joint positions (F, J, 3) with root headings (F,)."""
+def encode(layout: Layout, positions: np.ndarray, theta: np.ndarray, ground: np.ndarray | None = None) -> np.ndarray:
+    """The image (F, H) of world joint positions (F, J, 3) with root headings (F,) on the
+    root's floor points ``ground`` (F, 3) (default: under the root joint)."""
     F = positions.shape[0]
     hips = positions[:, 0]
-    ground = hips * np.array([1.0, 0.0, 1.0])
+    if ground is None:
+        ground = hips * np.array([1.0, 0.0, 1.0])
     local = turn_y(positions[:, list(layout.joints)] - ground[:, None], -theta[:, None])  # heading frame
     step = np.zeros((F, 3))
     step[1:] = turn_y(ground[1:] - ground[:-1], -theta[1:])
