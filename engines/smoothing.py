@@ -35,6 +35,8 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.linalg import solveh_banded
 
+from workbench.core.channels import interpolate_gaps
+
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10
 #: candidate smoothing ratios lambda = r / q for the risk minimisation (log grid, x1.78)
@@ -200,3 +202,10 @@ def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.
     lam = smoothing_ratio(Y, r, observed.mean(axis=0))
     return r / lam, r
 
+
+def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """(F, D) channels ``Y`` (anything where missing) with their ``observed`` samples
+    (F, D) smoothed by :func:`cv_smooth` at the noise variances :func:`estimate_noise`
+    finds in them, and bridged linearly across the gaps (between the smoothed ends)."""
+    bridged = interpolate_gaps(Y, observed)
+    return interpolate_gaps(cv_smooth(bridged, observed, *estimate_noise(bridged, observed)), observed)

@@ -323,20 +323,30 @@ def test_ema_keeps_the_average_of_the_steps_weights():
 
 def test_short_levers_keep_their_observed_angles(test_clip):
     """The hands and finger bases (children within 5 cm) come back as observed, bridged
-    linearly across a hole (IK would aim them at finger positions a few mm off)."""
+    linearly across a hole (IK would aim them at finger positions a few mm off); with
+    the anchor the observed angles are smoothed first (their noise is the observation's)."""
     from engines.cae.engine import short_lever_joints
+    from engines.smoothing import smooth_observed
 
     sk = test_clip.skeleton
     short = short_lever_joints(sk, 5.0)
     assert [sk.names[j] for j in short] == ["LeftHand", "LeftFingerBase", "RightHand", "RightFingerBase"]
     obs = parse_corruption("block:30,200").apply(test_clip, seed=0)
-    out = registry.create("cae").clean(obs).motion.angles_deg[:, short]
     seen = obs.observed[:, short[0]]
-    np.testing.assert_allclose(out[seen], test_clip.angles_deg[:, short][seen], atol=1e-6)
-    np.testing.assert_allclose(out[~seen], registry.create("lerp").clean(obs).motion.angles_deg[:, short][~seen],
+    raw = registry.create("cae:anchor=false").clean(obs).motion.angles_deg[:, short]
+    np.testing.assert_allclose(raw[seen], test_clip.angles_deg[:, short][seen], atol=1e-6)
+    np.testing.assert_allclose(raw[~seen], registry.create("lerp").clean(obs).motion.angles_deg[:, short][~seen],
                                atol=1e-6)
+    cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+    anchored = registry.create("cae").clean(obs).motion.channels[:, cols]
+    np.testing.assert_allclose(anchored, smooth_observed(obs.motion.channels[:, cols], np.isfinite(
+        obs.motion.channels[:, cols])), atol=1e-6)
     free = registry.create("cae:short_lever_cm=0").clean(obs).motion.angles_deg[:, short]
     assert np.abs(free[seen] - test_clip.angles_deg[:, short][seen]).max() > 0.5
+    noisy = parse_corruption("spatial:1").apply(test_clip, seed=0)
+    out = registry.create("cae").clean(noisy).motion.angles_deg[:, short]
+    assert np.sqrt(np.mean((out - test_clip.angles_deg[:, short]) ** 2)) < 0.5 * np.sqrt(
+        np.mean((noisy.motion.angles_deg[:, short] - test_clip.angles_deg[:, short]) ** 2))
 
 
 def test_view_averages_are_symmetric(trained, test_clip):

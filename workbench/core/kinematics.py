@@ -16,13 +16,15 @@ from .rotations import euler_to_matrix, kabsch, matrix_to_euler, nearest_euler, 
 from .skeleton import Skeleton
 
 
-def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray) -> np.ndarray:
-    """(F, J, 3, 3) local rotation matrices from Euler angles (F, J, 3)."""
-    out = np.empty(angles_deg.shape[:-1] + (3, 3))
+def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray, joints=None) -> np.ndarray:
+    """(F, n, 3, 3) local rotation matrices of ``joints`` (n indices; default all J) from
+    the Euler angles (F, J, 3)."""
+    joints = np.arange(skeleton.n_joints) if joints is None else np.asarray(joints, int)
+    out = np.empty((angles_deg.shape[0], len(joints), 3, 3))
     orders = skeleton.rotation_orders
-    for order in set(orders):
-        idx = [j for j, o in enumerate(orders) if o == order]
-        out[:, idx] = euler_to_matrix(angles_deg[:, idx], order)
+    for order in set(orders[j] for j in joints):
+        k = [i for i, j in enumerate(joints) if orders[j] == order]
+        out[:, k] = euler_to_matrix(angles_deg[:, joints[k]], order)
     return out
 
 
