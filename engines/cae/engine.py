@@ -88,6 +88,7 @@ from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
+from ..smoothing import cv_smooth, measurement_variance, smooth_observed, smoothing_ratio
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, reverse_time, trajectory, turn_y, wrap)
 
@@ -336,8 +337,6 @@ class ConvAutoencoderEngine(Engine):
         short = short_lever_joints(skeleton, self.params.short_lever_cm)
         short = short[observation.observed[:, short].any(axis=0)]  # observed, bridged across the holes
         if self.params.anchor and short.size:  # their observed angles, noise shed
-            from engines.smoothing import smooth_observed
-
             cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
             ref, ref_local = ref.copy(), ref_local.copy()
             ref[:, short] = smooth_observed(bridged[:, cols], channel_mask(observation.observed)[:, cols]).reshape(
@@ -361,8 +360,6 @@ class ConvAutoencoderEngine(Engine):
         miss = np.where(mask, image - out, 0.0)
         kept = exact
         if self.params.anchor:
-            from engines.smoothing import cv_smooth, measurement_variance, smoothing_ratio
-
             r = measurement_variance(image, mask)
             lam = smoothing_ratio(interpolate_gaps(miss, mask), r, mask.mean(axis=0))
             miss = np.where(exact, miss, cv_smooth(miss, mask, r / lam, r))
@@ -395,8 +392,6 @@ def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.nd
     replaces those). The image is root-relative, so a noisy root would otherwise
     shake the whole body: every joint's rows would carry the root's noise, and the
     decoded pose would be put back on the noisy track."""
-    from engines.smoothing import smooth_observed
-
     Y = np.column_stack([ground[:, 0], ground[:, 2], np.unwrap(theta)])
     S = smooth_observed(Y, np.repeat(root_known[:, None], 3, axis=1))
     smoothed = ground.copy()
