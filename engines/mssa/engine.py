@@ -19,7 +19,7 @@ from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
 from ..identity import bridge_gaps
-from ..smoothing import smoothing_ratio
+from ..smoothing import smooth_observed, smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -266,6 +266,8 @@ class MSSA(Engine):
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre
         out[:, model.held] = np.median(Y[:, model.held], axis=0)
+        if self.params.space == "angles":  # the root's position and rotation (columns 0-5)
+            out[:, :6] = smooth_observed(X[:, :6], mask[:, :6])
         weight = observed.astype(float)
         weight[:, cols] = result.weight
 
