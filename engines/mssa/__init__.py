@@ -42,7 +42,7 @@ engine's smoother at the noise levels it finds in them
 corruptions leave the root clean, as the paper assumes, and it passes almost
 unchanged, but joint-position noise solved back to angles (``spatial``) reaches it,
 and a noisy root orientation turns the whole cleaned body (test split, ``spatial:1``:
-mpjpe 2.64 cm with the root passed through, worse than the input's 1.83; 1.30
+mpjpe 2.64 cm with the root passed through, worse than the input's 1.83; 1.32
 smoothed). ``space="positions"`` recovers the root's orientation from the cleaned
 positions of its children by IK.
 
