@@ -35,16 +35,16 @@ so they are held at the take's median. A channel never observed in a take starts
 training mean.
 
 Root: the trajectory is not stationary (a walk drifts metres, the heading unwraps
-without bound), so short-window bases learned from other takes do not describe it. In
-angle mode the root's position and orientation are smoothed instead by the ``kalman``
-engine's smoother at the noise levels it finds in them
-(:func:`engines.smoothing.smooth_observed`; gaps bridged linearly): the angle
-corruptions leave the root clean, as the paper assumes, and it passes almost
-unchanged, but joint-position noise solved back to angles (``spatial``) reaches it,
-and a noisy root orientation turns the whole cleaned body (test split, ``spatial:1``:
-mpjpe 2.64 cm with the root passed through, worse than the input's 1.83; 1.32
-smoothed). ``space="positions"`` recovers the root's orientation from the cleaned
-positions of its children by IK.
+without bound), so short-window bases learned from other takes do not describe it. The
+root's position and orientation are smoothed instead by the ``kalman`` engine's
+smoother at the noise levels it finds in them (:func:`engines.smoothing.smooth_observed`;
+gaps bridged linearly): the angle corruptions leave the root clean, as the paper
+assumes, and it passes almost unchanged, but joint-position noise solved back to
+angles (``spatial``) reaches it, and in angle mode a noisy root orientation turns the
+whole cleaned body (test split, ``spatial:1``: mpjpe 2.64 cm with the root passed
+through, worse than the input's 1.83; 1.32 smoothed). ``space="positions"`` puts the cleaned root-relative positions on the
+smoothed root position (the root 1.59 -> 0.48 cm off under ``spatial:1``) and recovers
+the root's orientation from its children by IK.
 
 Output: ``output="motion"`` (default) returns the minimiser z of Eq. 11, as the paper
 does. ``output="reconstruction"`` returns, at each frame, the mean of the covering
