@@ -70,6 +70,15 @@ def _ancestors(parents, k):
     return out
 
 
+def test_root_error_is_the_trajectory_the_root_aligned_scores_ignore(walk):
+    X = walk.channels
+    X[:, 0] += 2.0  # the whole take moved 2 file units along x
+    moved = walk.with_channels(X)
+    assert metrics.mpjpe_cm(walk, moved) < 1e-9
+    assert metrics.root_cm(walk, moved) == pytest.approx(2.0 * walk.skeleton.unit_cm)
+    assert "root_cm" in metrics.score(walk, moved)
+
+
 def test_bone_lengths_and_jitter(walk):
     stats = metrics.bone_length_stats_cm(walk.positions, walk)
     assert np.allclose(stats["std"], 0, atol=1e-9)

@@ -20,7 +20,7 @@ from .core.motion import Case, Motion, Observation
 from .engine import Engine
 from .corruption import make_case
 
-METRICS = ("rms_angle_deg", "mpjpe_cm", "gap_mpjpe_cm", "jitter_cm_s3")
+METRICS = ("rms_angle_deg", "mpjpe_cm", "gap_mpjpe_cm", "root_cm", "jitter_cm_s3")
 
 
 @dataclass

@@ -53,6 +53,14 @@ def mpjpe_cm(truth: Motion, estimate: Motion) -> float:
     return float(np.mean(joint_position_error_cm(truth, estimate)))
 
 
+def root_cm(truth: Motion, estimate: Motion) -> float:
+    """Mean distance of the root joint from the truth's, in cm, in world space: the
+    trajectory, which the root-aligned scores do not see."""
+    _check(truth, estimate)
+    return float(np.mean(np.linalg.norm(estimate.positions[:, 0] - truth.positions[:, 0], axis=1))
+                 * truth.skeleton.unit_cm)
+
+
 def gap_mpjpe_cm(truth: Motion, estimate: Motion, observed: np.ndarray) -> float:
     """Root-aligned mean joint position error, in cm, over the positions that depend on
     missing data (observed (F, J) False): each (frame, joint) whose root or ancestor is
@@ -99,10 +107,11 @@ def jitter_cm_s3(motion: Motion) -> float:
 
 def score(truth: Motion, estimate: Motion, observed: np.ndarray | None = None) -> dict[str, float]:
     """The headline numbers of one result: rms_angle_deg, mpjpe_cm, gap_mpjpe_cm (only
-    when ``observed`` has missing entries) and jitter_cm_s3."""
+    when ``observed`` has missing entries), root_cm and jitter_cm_s3."""
     out = {
         "rms_angle_deg": rms_angle_deg(truth, estimate),
         "mpjpe_cm": mpjpe_cm(truth, estimate),
+        "root_cm": root_cm(truth, estimate),
         "jitter_cm_s3": jitter_cm_s3(estimate),
     }
     if observed is not None and not np.asarray(observed, bool).all():
