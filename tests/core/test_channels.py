@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.core.channels import gap_distance, interpolate_gaps, retime, unwrap_deg
+from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, retime, unwrap_deg
 
 
 def test_retime_plays_faster_and_slower_by_linear_interpolation():
@@ -20,7 +20,7 @@ def test_retime_plays_faster_and_slower_by_linear_interpolation():
         retime(X, 0.0)
 
 
-def test_gap_distance_counts_frames_to_the_nearest_observed_sample():
+def test_gap_distance_and_hole_length_count_frames_of_each_gap():
     missing = np.zeros((10, 3), bool)
     missing[2:7, 0] = True      # a gap inside the clip
     missing[:3, 1] = True       # a gap at the start
@@ -29,6 +29,10 @@ def test_gap_distance_counts_frames_to_the_nearest_observed_sample():
     assert d[:, 0].tolist() == [0, 0, 1, 2, 3, 2, 1, 0, 0, 0]
     assert d[:, 1].tolist() == [3, 2, 1, 0, 0, 0, 0, 0, 0, 0]
     assert np.isinf(d[:, 2]).all()
+    h = hole_length(missing)
+    assert h[:, 0].tolist() == [0, 0, 5, 5, 5, 5, 5, 0, 0, 0]
+    assert np.isinf(h[:3, 1]).all() and not h[3:, 1].any()  # no observation before it
+    assert np.isinf(h[:, 2]).all()
 
 
 @pytest.mark.parametrize("missing", [[0, 1, 5, 6, 7, 19], [0], [4], list(range(19))])

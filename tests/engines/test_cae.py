@@ -349,6 +349,21 @@ def test_short_levers_keep_their_observed_angles(test_clip):
         np.mean((noisy.motion.angles_deg[:, short] - test_clip.angles_deg[:, short]) ** 2))
 
 
+def test_short_holes_are_bridged_as_observed(test_clip):
+    """Scattered drop-outs hide every position below a missing joint; bridging holes of
+    a few frames in angle space, as lerp does, keeps those positions instead of leaving
+    them to the network."""
+    obs = parse_corruption("drop:0.5").apply(test_clip.slice(0, 200), seed=0)
+    truth = test_clip.slice(0, 200)
+
+    def gap_error(spec):
+        return metrics.gap_mpjpe_cm(truth, registry.create(spec).clean(obs).motion, obs.observed)
+
+    lerp = gap_error("lerp")
+    assert gap_error("cae") < 1.5 * lerp
+    assert gap_error("cae:short_hole_frames=0") > 2.5 * lerp
+
+
 def test_view_averages_are_symmetric(trained, test_clip):
     """Averaged over the mirrored and the reversed views, the completion of a mirrored
     (or reversed) image is the mirrored (reversed) completion; a single pass is not (the

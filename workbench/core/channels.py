@@ -189,11 +189,26 @@ def retime(X: np.ndarray, speed: float) -> np.ndarray:
     return interpolate_frames(X, np.arange(0.0, X.shape[0] - 1 + 1e-9, speed))
 
 
-def gap_distance(missing: np.ndarray) -> np.ndarray:
-    """(F, C) frames from each sample to the nearest observed sample of its column, for a
-    missing mask (F, C); 0 where observed, inf in a column with no observed sample."""
+def _observed_around(missing: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frame numbers (F, C) of each sample, of the last observed sample at or before it
+    (-inf if none) and of the first at or after it (inf if none), per column."""
     missing = np.asarray(missing, bool)
     frame = np.broadcast_to(np.arange(missing.shape[0], dtype=float)[:, None], missing.shape)
     last = np.maximum.accumulate(np.where(missing, -np.inf, frame), axis=0)
     following = np.minimum.accumulate(np.where(missing, np.inf, frame)[::-1], axis=0)[::-1]
+    return frame, last, following
+
+
+def gap_distance(missing: np.ndarray) -> np.ndarray:
+    """(F, C) frames from each sample to the nearest observed sample of its column, for a
+    missing mask (F, C); 0 where observed, inf in a column with no observed sample."""
+    frame, last, following = _observed_around(missing)
     return np.minimum(frame - last, following - frame)
+
+
+def hole_length(missing: np.ndarray) -> np.ndarray:
+    """(F, C) length in frames of the run of missing samples each sample lies in, for a
+    missing mask (F, C); 0 where observed, inf where the run touches the start or the end
+    of the take (nothing observed on one side)."""
+    _, last, following = _observed_around(missing)
+    return np.where(missing, following - last - 1.0, 0.0)
