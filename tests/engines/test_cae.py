@@ -364,6 +364,19 @@ def test_short_holes_are_bridged_as_observed(test_clip):
     assert gap_error("cae:short_hole_frames=0") > 2.5 * lerp
 
 
+def test_short_gaps_blend_in_the_smoothers_fill(test_clip):
+    """A 15-frame gap: the constant-velocity smoother's fill is better than the network's
+    there (the network fills long gaps), so cae blends the two by the gap's length."""
+    obs = parse_corruption("block:15").apply(test_clip, seed=0)
+
+    def gap_error(spec):
+        return metrics.gap_mpjpe_cm(test_clip, registry.create(spec).clean(obs).motion, obs.observed)
+
+    blended = gap_error("cae")
+    assert blended < 0.7 * gap_error("cae:hole_blend_frames=0")
+    assert blended < 1.2 * gap_error("kalman")
+
+
 def test_view_averages_are_symmetric(trained, test_clip):
     """Averaged over the mirrored and the reversed views, the completion of a mirrored
     (or reversed) image is the mirrored (reversed) completion; a single pass is not (the
