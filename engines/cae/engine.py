@@ -357,20 +357,29 @@ class ConvAutoencoderEngine(Engine):
             if self.params.anchor and self.params.hole_blend_frames:
                 out = self.blend_short_holes(out, mask)
             target = decode(layout, out, ground, theta)
-        short = short_lever_joints(skeleton, self.params.short_lever_cm)
-        short = short[observation.observed[:, short].any(axis=0)]  # observed, bridged across the holes
-        if self.params.anchor and short.size:  # their observed angles, noise shed
-            cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
-            ref, ref_local = ref.copy(), ref_local.copy()
-            ref[:, short] = smooth_observed(bridged[:, cols], channel_mask(observation.observed)[:, cols]).reshape(
-                observation.n_frames, -1, 3)
-            ref_local[:, short] = local_rotations(skeleton, ref, short)
+        short, ref, ref_local = self._kept_joints(observation, bridged, ref, ref_local)
         root, angles = inverse_kinematics(skeleton, target, ref, reference_local=ref_local, reference_joints=short)
         channels = rewrap_angles(np.concatenate([root, angles.reshape(observation.n_frames, -1)], axis=1), observation)
         if self.params.keep_observed:
             given = channel_mask(observation.observed)
             channels[given] = observation.motion.channels[given]
         return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw})
+
+    def _kept_joints(self, observation: Observation, bridged: np.ndarray, ref: np.ndarray,
+                     ref_local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The short-lever joints observed somewhere in the take, which IK keeps at the
+        reference instead of aiming them, and the reference (angles (F, J, 3), local
+        rotations (F, J, 3, 3)) with their observed angles bridged across the holes and,
+        with ``anchor``, smoothed (:func:`engines.smoothing.smooth_observed`)."""
+        short = short_lever_joints(observation.skeleton, self.params.short_lever_cm)
+        short = short[observation.observed[:, short].any(axis=0)]
+        if self.params.anchor and short.size:
+            cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+            ref, ref_local = ref.copy(), ref_local.copy()
+            ref[:, short] = smooth_observed(bridged[:, cols], channel_mask(observation.observed)[:, cols]).reshape(
+                observation.n_frames, -1, 3)
+            ref_local[:, short] = local_rotations(observation.skeleton, ref, short)
+        return short, ref, ref_local
 
     def correction(self, image: np.ndarray, mask: np.ndarray, out: np.ndarray, exact: np.ndarray) -> np.ndarray:
         """(F, H) added to the network's output ``out``: its miss (image - out) in full at the
