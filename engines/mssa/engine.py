@@ -266,14 +266,14 @@ class MSSA(Engine):
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre
         out[:, model.held] = np.median(Y[:, model.held], axis=0)
-        root = smooth_observed(X[:, :6], mask[:, :6])  # the root's position and rotation
+        root_track = smooth_observed(X[:, :6], mask[:, :6])  # the root's position and rotation
         if self.params.space == "angles":
-            out[:, :6] = root
+            out[:, :6] = root_track
         weight = observed.astype(float)
         weight[:, cols] = result.weight
 
         if self.params.space == "positions":
-            root_joint = root[:, :3] + skeleton.offsets[0]
+            root_joint = root_track[:, :3] + skeleton.offsets[0]
             world = out.reshape(F, -1, 3) + root_joint[:, None]
             root, angles = inverse_kinematics(skeleton, world, X[:, 3:].reshape(F, -1, 3))
             out = np.concatenate([root, angles.reshape(F, -1)], axis=1)
