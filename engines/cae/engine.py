@@ -33,8 +33,9 @@ Cleaning a take (Observation -> Motion):
    predicted velocities integrated across the gaps (attached to the known frames at
    both ends); the image on that trajectory gives the raw network positions
    (diagnostic ``raw_positions``, (F, J, 3), file units). With ``anchor`` the observed
-   floor points and headings are first smoothed (:func:`anchored_trajectory`) and the
-   image is built on that track: the image is root-relative, so the root's noise would
+   floor points and headings are first smoothed (:func:`anchored_trajectory`; across a
+   gap inside the take the floor path is then the mean of the integrated one and the
+   smoother's fill) and the image is built on that track: the image is root-relative, so the root's noise would
    otherwise enter every joint's rows and the result would be put back on the noisy
    track (test split, ``spatial:1``: 1.30 -> 0.69 cm, the root 1.31 -> 0.51 cm off;
    no corruption: 0.017 -> 0.019 cm).
@@ -345,7 +346,11 @@ class ConvAutoencoderEngine(Engine):
         image, mask = encode(layout, P, theta, ground), image_mask(layout, known)
         mirror = mirror_rows(layout, skeleton.names) if self.params.views > 1 else None
         out = self.complete(image, mask, mirror, self.params.views)
-        ground, theta = trajectory(out, known[:, 0], ground, theta)
+        path, theta = trajectory(out, known[:, 0], ground, theta)
+        if self.params.anchor:  # across a gap inside the take: the mean with the smoother's path
+            ground = np.where(np.isinf(hole_length(~known[:, :1])), path, 0.5 * (path + ground))
+        else:
+            ground = path
         exact = mask.copy() if self.params.keep_observed else np.zeros_like(mask)
         if constraints:  # a second pass, on the first one's trajectory
             image, mask, constrained = self._constrain(image, mask, constraints, ground, theta)
@@ -444,12 +449,17 @@ class ConvAutoencoderEngine(Engine):
 def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The root's floor points (F, 3) and headings (F,) radians where ``root_known`` (F,),
     smoothed by the ``kalman`` engine's constant-velocity smoother with the noise levels
-    it estimates from them (elsewhere bridged linearly; :func:`.representation.trajectory`
-    replaces those). The image is root-relative, so a noisy root would otherwise
-    shake the whole body: every joint's rows would carry the root's noise, and the
-    decoded pose would be put back on the noisy track."""
+    it estimates from them, and its fill where the root is unknown. The image is
+    root-relative, so a noisy root would otherwise shake the whole body: every joint's
+    rows would carry the root's noise, and the decoded pose would be put back on the
+    noisy track. Across a gap inside the take the floor path is the mean of this fill
+    and the network's (test split, 5 seeds, the root off in cm: 60-frame gap 1.02 ->
+    0.91, 120 frames 5.02 -> 3.76; validation 0.29 -> 0.22, 0.83 -> 0.65; the fill alone
+    does better on 120 frames, worse on 60, and varies more from take to take)."""
     Y = np.column_stack([ground[:, 0], ground[:, 2], np.unwrap(theta)])
-    S = smooth_observed(Y, np.repeat(root_known[:, None], 3, axis=1))
+    known = np.repeat(root_known[:, None], 3, axis=1)
+    bridged = interpolate_gaps(Y, known)
+    S = cv_smooth(bridged, known, *estimate_noise(bridged, known))
     smoothed = ground.copy()
     smoothed[:, [0, 2]] = S[:, :2]
     return smoothed, wrap(S[:, 2])
