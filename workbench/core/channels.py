@@ -120,17 +120,14 @@ def _bridge_columns(X: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """Columns (F, C), each observed at least once, with their missing samples interpolated
     linearly between the observed samples around them and the end values held outside
     them, each column on its own mask: what ``np.interp`` does per column, for all at
-    once (the observed frames around each sample are running maxima and minima of frame
-    indices)."""
-    F, C = X.shape
-    t = np.arange(F)[:, None]
-    before = np.maximum.accumulate(np.where(observed, t, -1), axis=0)
-    after = np.minimum.accumulate(np.where(observed, t, F)[::-1], axis=0)[::-1]
-    before = np.where(before < 0, after, before)   # before the first observation: hold it
-    after = np.where(after >= F, before, after)    # after the last: hold it
+    once (the observed frames around each sample from :func:`_observed_around`)."""
+    C = X.shape[1]
+    t, before, after = _observed_around(~observed)
+    before = np.where(np.isinf(before), after, before)   # before the first observation: hold it
+    after = np.where(np.isinf(after), before, after)      # after the last: hold it
     flat, col = X.ravel(), np.arange(C)
-    a, b = flat[before * C + col], flat[after * C + col]
-    span = (after - before).astype(float)
+    a, b = flat[before.astype(int) * C + col], flat[after.astype(int) * C + col]
+    span = after - before
     w = (t - before) / np.where(span > 0, span, 1.0)
     return np.where(observed, X, a + (b - a) * w)
 
