@@ -203,9 +203,15 @@ def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.
     return r / lam, r
 
 
-def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """(F, D) channels ``Y`` (anything where missing) with their ``observed`` samples
-    (F, D) smoothed by :func:`cv_smooth` at the noise variances :func:`estimate_noise`
-    finds in them, and bridged linearly across the gaps (between the smoothed ends)."""
+def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """(F, D) channels ``Y`` (anything where missing) smoothed by :func:`cv_smooth` at the
+    noise variances :func:`estimate_noise` finds in their ``observed`` samples (F, D), the
+    gaps filled by the smoother (the constant-velocity model's path across them)."""
     bridged = interpolate_gaps(Y, observed)
-    return interpolate_gaps(cv_smooth(bridged, observed, *estimate_noise(bridged, observed)), observed)
+    return cv_smooth(bridged, observed, *estimate_noise(bridged, observed))
+
+
+def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed
+    ends)."""
+    return interpolate_gaps(smooth_and_fill(Y, observed), observed)

@@ -35,9 +35,9 @@ Cleaning a take (Observation -> Motion):
    (diagnostic ``raw_positions``, (F, J, 3), file units). With ``anchor`` the observed
    floor points and headings are first smoothed (:func:`anchored_trajectory`; across a
    gap inside the take the floor path is then the mean of the integrated one and the
-   smoother's fill) and the image is built on that track: the image is root-relative, so the root's noise would
-   otherwise enter every joint's rows and the result would be put back on the noisy
-   track (test split, ``spatial:1``: 1.30 -> 0.69 cm, the root 1.31 -> 0.51 cm off;
+   smoother's fill) and the image is built on that track: the image is root-relative,
+   so the root's noise would otherwise enter every joint's rows and the result would be
+   put back on the noisy track (test split, ``spatial:1``: 1.30 -> 0.69 cm, the root 1.31 -> 0.51 cm off;
    no corruption: 0.017 -> 0.019 cm).
 4. IK with the skeleton's bone lengths turns them into angles (twist about single-child
    bones from the bridged observation), so the result is a normal Motion. Before IK
@@ -63,9 +63,9 @@ Cleaning a take (Observation -> Motion):
    ``drop:0.5`` 10.3 -> 3.3, ``spatial:1.5`` 4.69 -> 3.32 (7.9 kept unsmoothed).
    Inside a hole of L unknown frames of an image row with L < ``hole_blend_frames``
    (60; our addition), where the whole body is missing (the root unknown), the
-   anchored output moves towards the constant-velocity
-   smoother's fill of the row's known entries, by the weight 1 - L / 60: the network
-   was trained for long gaps, and on short ones the smoother (and a spline) fill better.
+   anchored output moves towards the constant-velocity smoother's fill of the row's
+   known entries, by the weight 1 - L / 60: the network was trained for long gaps, and
+   on short ones the smoother (and a spline) fill better.
    Test split, whole frames missing, gap error without -> with, spline: 8 frames 0.45
    -> 0.20 cm (0.17), 15 frames 0.74 -> 0.41 (0.37), 30 frames 1.61 -> 1.29 (1.38),
    45 frames 2.74 -> 2.59 (3.01); 60 and more unchanged.
@@ -102,7 +102,7 @@ from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
-from ..smoothing import cv_smooth, estimate_noise, measurement_variance, smooth_observed, smoothing_ratio
+from ..smoothing import cv_smooth, measurement_variance, smooth_and_fill, smooth_observed, smoothing_ratio
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, reverse_time, trajectory, turn_y, wrap)
 
@@ -420,8 +420,8 @@ class ConvAutoencoderEngine(Engine):
             return out
         hit = np.flatnonzero(short[:, cols].any(axis=1))
         span = slice(max(hit[0] - H, 0), hit[-1] + H + 1)  # the holes and H frames around them
-        rows, known = out[span, cols], mask[span, cols]
-        fill = cv_smooth(rows, known, *estimate_noise(interpolate_gaps(rows, known), known))
+        rows = out[span, cols]
+        fill = smooth_and_fill(rows, mask[span, cols])
         weight = np.where(short[span, cols], 1.0 - length[span, cols] / H, 0.0)
         out = out.copy()
         out[span, cols] += weight * (fill - rows)
@@ -457,9 +457,7 @@ def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.nd
     0.91, 120 frames 5.02 -> 3.76; validation 0.29 -> 0.22, 0.83 -> 0.65; the fill alone
     does better on 120 frames, worse on 60, and varies more from take to take)."""
     Y = np.column_stack([ground[:, 0], ground[:, 2], np.unwrap(theta)])
-    known = np.repeat(root_known[:, None], 3, axis=1)
-    bridged = interpolate_gaps(Y, known)
-    S = cv_smooth(bridged, known, *estimate_noise(bridged, known))
+    S = smooth_and_fill(Y, np.repeat(root_known[:, None], 3, axis=1))
     smoothed = ground.copy()
     smoothed[:, [0, 2]] = S[:, :2]
     return smoothed, wrap(S[:, 2])

@@ -42,9 +42,9 @@ gaps bridged linearly): the angle corruptions leave the root clean, as the paper
 assumes, and it passes almost unchanged, but joint-position noise solved back to
 angles (``spatial``) reaches it, and in angle mode a noisy root orientation turns the
 whole cleaned body (test split, ``spatial:1``: mpjpe 2.64 cm with the root passed
-through, worse than the input's 1.83; 1.32 smoothed). ``space="positions"`` puts the cleaned root-relative positions on the
-smoothed root position (the root 1.59 -> 0.48 cm off under ``spatial:1``) and recovers
-the root's orientation from its children by IK.
+through, worse than the input's 1.83; 1.32 smoothed). ``space="positions"`` puts the
+cleaned root-relative positions on the smoothed root position (the root 1.59 -> 0.48 cm
+off under ``spatial:1``) and recovers the root's orientation from its children by IK.
 
 Output: ``output="motion"`` (default) returns the minimiser z of Eq. 11, as the paper
 does. ``output="reconstruction"`` returns, at each frame, the mean of the covering
