@@ -198,18 +198,23 @@ class ConvAutoencoderEngine(Engine):
     # -- training -------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "ConvAutoencoderEngine":
         """Train on clean motions of one skeleton layout (the training split)."""
-        from engines.torch_support import seed_everything, use_threads
+        from engines.torch_support import reproducible_training
 
-        from .training import WindowSampler, train
-
-        p = self.params
         if not motions:
             raise EngineError(f"engine {self.info.name!r}: no training motions")
         skeleton = motions[0].skeleton
         if any(m.skeleton.signature() != skeleton.signature() for m in motions):
             raise EngineError(f"engine {self.info.name!r} trains on one skeleton layout; these motions mix several")
-        use_threads()
-        seed_everything(p.seed)
+        with reproducible_training(self.params.seed):
+            self._train(motions)
+        return self
+
+    def _train(self, motions: Sequence[Motion]) -> None:
+        """Build the network and train it on ``motions``; sets the fitted state."""
+        from .training import WindowSampler, train
+
+        p = self.params
+        skeleton = motions[0].skeleton
         layout = Layout.from_skeleton(skeleton)
         net = self.build_network(layout.n_rows)
         if p.window_frames % net.time_multiple:
@@ -247,7 +252,6 @@ class ConvAutoencoderEngine(Engine):
         self.net_, self.layout_, self.constant_ = net, layout, constant
         self.mean_, self.std_, self.loss_log_ = mean, std, np.array(log)
         self.skeleton_signature_ = skeleton.signature()
-        return self
 
     # -- fitted state ---------------------------------------------------------------
     def save(self, folder: str | Path, extra_manifest: Mapping | None = None) -> Path:

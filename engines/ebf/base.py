@@ -162,9 +162,7 @@ class WindowEngine(Engine):
     def fit(self, motions: Sequence[Motion], /) -> "WindowEngine":
         """Train on clean motions of one skeleton (fresh corruption every epoch);
         progress bar and per-epoch losses on stderr."""
-        from engines.torch_support import seed_everything, use_threads
-
-        from .training import Corpus, train
+        from engines.torch_support import reproducible_training
 
         motions = list(motions)
         if not motions:
@@ -172,8 +170,15 @@ class WindowEngine(Engine):
         signature = motions[0].skeleton.signature()
         if any(m.skeleton.signature() != signature for m in motions):
             raise EngineError(f"engine {self.info.name!r}: training motions must share one skeleton layout")
-        use_threads()
-        seed_everything(self.params.seed)
+        with reproducible_training(self.params.seed):
+            self._train(motions)
+        self.skeleton_signature_ = signature
+        return self
+
+    def _train(self, motions: list[Motion]) -> None:
+        """Build the network and train it on ``motions``; sets the fitted state."""
+        from .training import Corpus, train
+
         layout = Layout.of(motions[0].skeleton)
         self.norm_ = Normaliser.fit(motions, layout)
         net = self._build_net(layout.n_channels)
@@ -191,8 +196,6 @@ class WindowEngine(Engine):
             missing_only=self.MISSING_ONLY, error_unit=self.norm_.angle_std if self.ERRORS_IN_STDS else None,
             frame_rms=self.FRAME_RMS_LOSS, desc=self.variant))
         self.net_ = net.eval()
-        self.skeleton_signature_ = signature
-        return self
 
     def retimed(self, motion: Motion, rng: np.random.Generator) -> Motion:
         """``motion`` played at a random speed (the ``time_scale_pct`` augmentation)."""

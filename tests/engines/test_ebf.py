@@ -231,6 +231,19 @@ def test_tiny_fit_learns_and_round_trips_through_save_and_load(tiny, tmp_path):
         EBF().load(tmp_path)  # a network of another size
 
 
+def test_two_thread_fits_are_repeatable_and_restore_the_thread_count(tiny, monkeypatch):
+    """Two threads, as ``workbench train`` uses here. (Without torch's deterministic
+    algorithms, full-size training differed from run to run; at this size it did not,
+    so :func:`engines.torch_support.reproducible_training` has its own test.)"""
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    params = EBF.Params(epochs=1, lstm_units=16, batch_windows=64, seed=3)
+    threads = torch.get_num_threads()
+    first, second = (EBF(params).fit(tiny).state_arrays() for _ in range(2))
+    assert first.keys() == second.keys()
+    assert all(np.array_equal(first[k], second[k]) for k in first)
+    assert torch.get_num_threads() == threads
+
+
 @pytest.mark.parametrize("cls,options", [(EBF, {"free": True, "bias": True}), (BF, {}), (NN, {})])
 def test_variants_fit_and_clean(cls, options, tiny):
     params = dict(epochs=1, batch_windows=64, **options)

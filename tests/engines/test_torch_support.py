@@ -6,7 +6,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from engines.torch_support import torch_threads  # noqa: E402
+from engines.torch_support import default_threads, reproducible_training, torch_threads  # noqa: E402
 
 
 def test_torch_threads_sets_and_restores_the_count():
@@ -21,3 +21,15 @@ def test_torch_threads_sets_and_restores_the_count():
         assert torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(before)
+
+
+def test_reproducible_training_seeds_and_restores_the_settings():
+    before = torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()
+    draws = []
+    for _ in range(2):
+        with reproducible_training(7):
+            assert torch.are_deterministic_algorithms_enabled()
+            assert torch.get_num_threads() == default_threads()
+            draws.append(torch.rand(3))
+        assert (torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()) == before
+    assert torch.equal(*draws)
