@@ -1,6 +1,6 @@
 """Fitted state on disk: ``weights.npz`` (plain arrays, never pickled) plus
 ``manifest.json`` holding its sha256 and whatever the engine needs to rebuild itself
-(parameters, skeleton, training data, metrics, code version).
+(parameters, skeleton, training data, metrics, code version and git commit).
 
 Torch engines store their state_dict as arrays too, so loading never unpickles a file
 a user hands us; a file whose checksum does not match is refused.
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import subprocess
 import time
 from pathlib import Path
 from typing import Mapping
@@ -31,6 +32,23 @@ def sha256_file(path: Path) -> str:
     return h.hexdigest()
 
 
+def code_commit() -> str | None:
+    """The git commit of this checkout, with "+dirty" when tracked files differ from it,
+    so a manifest says which code trained its weights; None outside a git checkout."""
+    root = Path(__file__).resolve().parents[1]
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True,
+                              timeout=10).stdout.strip()
+
+    try:
+        commit = git("rev-parse", "HEAD")
+        dirty = bool(git("status", "--porcelain", "--untracked-files=no"))
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return commit + ("+dirty" if dirty else "")
+
+
 def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> Path:
     """Write arrays and manifest atomically into ``folder``; returns the manifest path."""
     from . import __version__
@@ -46,6 +64,7 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
         "file": WEIGHTS_FILE,
         "sha256": digest,
         "code_version": __version__,
+        "code_commit": code_commit(),
         "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
     atomic_write_text(folder / MANIFEST_FILE, json.dumps(full, indent=2, sort_keys=True) + "\n")

@@ -1,0 +1,68 @@
+"""Weights on disk (workbench.weights): the round trip, the manifest's provenance, and a
+clear refusal of every kind of bad file, never an unpickled one."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench import weights
+from workbench.engine import EngineError
+from workbench.weights import MANIFEST_FILE, WEIGHTS_FILE, code_commit, load_weights, save_weights
+
+
+@pytest.fixture
+def saved(tmp_path):
+    save_weights(tmp_path, {"w": np.arange(6.0).reshape(2, 3)}, {"engine": "demo", "params": {"k": 1}})
+    return tmp_path
+
+
+def test_round_trip_and_provenance(saved):
+    arrays, manifest = load_weights(saved)
+    assert np.array_equal(arrays["w"], np.arange(6.0).reshape(2, 3))
+    assert manifest["engine"] == "demo" and manifest["params"] == {"k": 1}
+    assert manifest["file"] == WEIGHTS_FILE and len(manifest["sha256"]) == 64
+    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
+                          cwd=Path(weights.__file__).resolve().parents[1])
+    if head.returncode == 0:  # a git checkout, as in CI
+        assert manifest["code_commit"].split("+")[0] == head.stdout.strip()
+
+
+def test_no_commit_outside_a_git_checkout(monkeypatch):
+    def no_git(*args, **kwargs):
+        raise FileNotFoundError("git")
+
+    monkeypatch.setattr(subprocess, "run", no_git)
+    assert code_commit() is None
+
+
+def test_a_changed_weights_file_is_refused(saved):
+    with np.load(saved / WEIGHTS_FILE) as data:
+        w = data["w"]
+    np.savez(saved / WEIGHTS_FILE, w=w + 1.0)
+    with pytest.raises(EngineError, match="checksum does not match"):
+        load_weights(saved)
+
+
+def test_missing_or_malformed_files_are_refused(saved, tmp_path_factory):
+    with pytest.raises(EngineError, match="no weights manifest"):
+        load_weights(tmp_path_factory.mktemp("empty"))
+    (saved / WEIGHTS_FILE).rename(saved / "moved.npz")
+    with pytest.raises(EngineError, match="weights file named by the manifest is missing"):
+        load_weights(saved)
+    (saved / MANIFEST_FILE).write_text("{not json", encoding="utf-8")
+    with pytest.raises(EngineError, match="unreadable weights manifest"):
+        load_weights(saved)
+
+
+def test_pickled_arrays_are_never_unpickled(saved):
+    np.savez(saved / WEIGHTS_FILE, w=np.array([{"payload": 1}], dtype=object))
+    manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
+    manifest["sha256"] = weights.sha256_file(saved / WEIGHTS_FILE)  # a matching checksum
+    (saved / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
+    with pytest.raises(EngineError, match="unreadable weights"):
+        load_weights(saved)
