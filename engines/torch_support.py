@@ -38,12 +38,12 @@ def reproducible_training(seed: int) -> Iterator[None]:
     """Run a training block seeded with ``seed`` (:func:`seed_everything`), on
     :func:`default_threads` torch threads and with torch's deterministic algorithms;
     both are restored after. Without them two-thread training is not repeatable:
-    ``workbench train ebf`` gave other weights from run to run (after one epoch in 3 of
-    4 runs; after 20, test ``angular:0.5`` 1.74 and 1.77 degrees where seeds 0 and 1
+    four one-epoch runs of ``workbench train ebf`` gave three different sets of weights
+    (after 20 epochs, test ``angular:0.5`` 1.74 and 1.77 degrees, where seeds 0 and 1
     give 1.66 and 1.76 deterministically). With them two threads give bit for bit what
-    one thread gives, about as fast. Holden's unpooling has no
-    deterministic flag, but it puts each value in a place of its own (2-frame pooling),
-    so it is deterministic anyway: warn only, and hush that warning."""
+    one thread gives, about as fast. Holden's unpooling has no deterministic flag, but
+    it puts each value in a place of its own (2-frame pooling), so it is deterministic
+    anyway: warn only, and hush that warning."""
     before = torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled()
     seed_everything(seed)
     torch.use_deterministic_algorithms(True, warn_only=True)
