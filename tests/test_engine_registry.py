@@ -19,6 +19,19 @@ def test_identity_bridges_gaps_and_keeps_observed(walk):
     del keep
 
 
+def test_observation_bridged_is_what_the_engines_bridge(walk):
+    """Observation.bridged (the corrupt command's BVH, the app's noisy skeleton) holds
+    the channels every angle engine starts from (engines.identity.bridge_gaps)."""
+    from engines.identity import bridge_gaps
+    from workbench.corruption import parse_corruption
+
+    obs = parse_corruption("angular:0.5+outliers:0.05+gaps:0.02").apply(walk, seed=4)
+    assert obs.has_gaps
+    X = obs.bridged().channels
+    assert np.isfinite(X).all()
+    assert np.allclose(X, bridge_gaps(obs), atol=1e-9)
+
+
 def test_unknown_engine_and_bad_params_are_clear():
     with pytest.raises(EngineError, match="unknown engine 'nope'; available: .*identity"):
         registry.create("nope")

@@ -87,8 +87,6 @@ def _read(path: str):
 
 
 def cmd_corrupt(args) -> int:
-    from .core.channels import interpolate_gaps, unwrap_deg
-    from .core.motion import channel_mask
     from .corruption import parse_corruption
     from .data import has_reference_frame
     from .io import write_bvh
@@ -99,12 +97,9 @@ def cmd_corrupt(args) -> int:
         motion = motion.slice(1)
         print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
     obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
-    mask = channel_mask(obs.observed)
-    X = obs.motion.channels
-    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:], robust=True)
     out = Path(args.output)
     mask_path = out.with_name(out.name + ".mask.json")
-    write_bvh(out, obs.motion.with_channels(interpolate_gaps(X, mask)))
+    write_bvh(out, obs.bridged())
     write_mask(mask_path, obs.observed, motion.skeleton)
     missing = 1.0 - obs.observed.mean()
     print(f"wrote {out} ({motion.n_frames} frames, corruption {parse_corruption(args.corrupt)}, seed {args.seed})")

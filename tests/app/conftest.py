@@ -15,7 +15,7 @@ from app_helpers import FRAME, FRAMES, settle
 
 from workbench import registry
 from workbench.app.main import configure_headless
-from workbench.app.take import bridged, make_take
+from workbench.app.take import make_take
 from workbench.core.motion import Observation
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
@@ -33,7 +33,7 @@ class Widths(Engine):
     info = EngineInfo(name="test-widths", summary="test: bridge gaps, report widths", tasks=frozenset({"fill"}))
 
     def clean(self, observation: Observation, /) -> CleanResult:
-        motion = bridged(observation)
+        motion = observation.bridged()
         F, C = motion.channels.shape
         widths = 1.0 + np.outer(np.linspace(0, 4, F), np.ones(C)) + np.arange(C) % 3
         return CleanResult(motion, {"filter_sigma_frames": widths})

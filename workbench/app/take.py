@@ -101,18 +101,6 @@ class Track:
         return np.sqrt(np.mean(self.errors_cm**2, axis=1))
 
 
-def bridged(observation: Observation) -> Motion:
-    """The observed motion with its gaps bridged linearly, to draw it (missing joints are
-    drawn grey where they would be)."""
-    from ..core.channels import interpolate_gaps, unwrap_deg
-    from ..core.motion import channel_mask
-
-    mask = channel_mask(observation.observed)
-    X = observation.motion.channels
-    X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:], robust=True)
-    return observation.motion.with_channels(interpolate_gaps(X, mask))
-
-
 @dataclass(frozen=True)
 class Take:
     """What the user compares engines on. ``truth`` is None for a take shown as recorded
@@ -170,7 +158,7 @@ def make_take(motion: Motion, corruption: str = DEFAULT_CORRUPTION, seed: int = 
         truth, observation = None, Observation(motion, observed)
     truth_track = None if truth is None else Track.of(truth, None)
     return Take(source or motion.name, str(spec), int(seed), observation, truth,
-                Track.of(bridged(observation), truth), truth_track)
+                Track.of(observation.bridged(), truth), truth_track)
 
 
 def open_take(source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) -> Take:

@@ -189,6 +189,17 @@ class Observation:
     def has_gaps(self) -> bool:
         return not bool(self.observed.all())
 
+    def bridged(self) -> Motion:
+        """The observed motion with its angles unwrapped robustly and its gaps bridged
+        linearly (:func:`.channels.unwrap_deg`, :func:`.channels.interpolate_gaps`), so
+        it is finite: what a BVH file of the observation or a drawing of it holds."""
+        from .channels import interpolate_gaps, unwrap_deg
+
+        mask = channel_mask(self.observed)
+        X = self.motion.channels
+        X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:], robust=True)
+        return self.motion.with_channels(interpolate_gaps(X, mask))
+
 
 @dataclass(frozen=True, eq=False)
 class Case:
