@@ -84,17 +84,11 @@ def wrap_deg(angles_deg: np.ndarray) -> np.ndarray:
 def nearest_euler(angles_deg: np.ndarray, reference_deg: np.ndarray) -> np.ndarray:
     """Of the two Euler triples for each rotation, and all their 360-degree shifts, pick
     the one closest to ``reference_deg`` (same shape): keeps channels continuous in time."""
-    best, best_cost = None, None
-    for cand in (np.asarray(angles_deg, float), alternative_euler(angles_deg)):
-        cand = reference_deg + wrap_deg(cand - reference_deg)
-        cost = np.sum((cand - reference_deg) ** 2, axis=-1)
-        if best is None:
-            best, best_cost = cand, cost
-        else:
-            take = cost < best_cost
-            best = np.where(take[..., None], cand, best)
-            best_cost = np.where(take, cost, best_cost)
-    return best
+    angles = np.asarray(angles_deg, float)
+    candidates = np.stack([angles, alternative_euler(angles)])  # (2, ..., 3)
+    candidates = reference_deg + wrap_deg(candidates - reference_deg)
+    cost = np.sum((candidates - reference_deg) ** 2, axis=-1)
+    return np.where((cost[1] < cost[0])[..., None], candidates[1], candidates[0])
 
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
