@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
-from workbench.core.rotations import euler_to_matrix, matrix_to_quaternion
+from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
 
 from ..identity import bridge_gaps
@@ -29,17 +29,24 @@ STD_FLOOR = 1.0
 def root_angular_velocity_dps(root_angles_deg: np.ndarray, order: str, fps: float,
                               baseline: int = VELOCITY_BASELINE) -> np.ndarray:
     """(F, 3) angular velocity of the root in its own frame, degrees per second, averaged
-    over the last ``baseline`` frames: the rotation vector of ``R[s]^T R[t]`` divided by
-    the time from s = max(0, t - baseline) to t (0 at frame 0). Invariant to heading; the
-    baseline keeps frame-to-frame jitter of a noisy root (spatial noise) from dominating."""
+    over the last ``baseline`` frames: :func:`rotation_rate_dps` from frame s = max(0, t -
+    baseline) to t (0 at frame 0). Invariant to heading; the baseline keeps
+    frame-to-frame jitter of a noisy root (spatial noise) from dominating."""
     R = euler_to_matrix(np.asarray(root_angles_deg, float), order)
     t = np.arange(R.shape[0])
     s = np.maximum(t - baseline, 0)
-    q = matrix_to_quaternion(np.einsum("fji,fjk->fik", R[s], R))  # w >= 0
-    norm = np.linalg.norm(q[:, 1:], axis=1)
-    angle = 2.0 * np.arctan2(norm, q[:, 0])
-    scale = np.where(norm > 1e-12, angle / np.maximum(norm, 1e-12), 2.0)
-    return np.rad2deg(q[:, 1:] * scale[:, None]) * fps / np.maximum(t - s, 1)[:, None]
+    return rotation_rate_dps(R[s], R, t - s, fps)
+
+
+def rotation_rate_dps(R_from: np.ndarray, R_to: np.ndarray, frames: np.ndarray, fps: float) -> np.ndarray:
+    """(..., 3) the rotation vector of ``R_from^T R_to`` (rotation matrices (..., 3, 3))
+    in degrees, per second over ``frames`` (...) frames at ``fps`` (0 where ``frames`` is 0)."""
+    R = np.einsum("...ji,...jk->...ik", R_from, R_to)
+    twice_sin_axis = R[..., [2, 0, 1], [1, 2, 0]] - R[..., [1, 2, 0], [2, 0, 1]]
+    twice_sin = np.linalg.norm(twice_sin_axis, axis=-1)
+    angle = np.arctan2(twice_sin, np.trace(R, axis1=-2, axis2=-1) - 1.0)
+    scale = np.where(twice_sin > 1e-12, angle / np.maximum(twice_sin, 1e-12), 0.5)
+    return np.rad2deg(twice_sin_axis * scale[..., None]) * fps / np.maximum(frames, 1)[..., None]
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,9 @@ EBF: 4 tanh layers encode each frame to 64 numbers; 2 bidirectional LSTM layers
 output frame (15 back, 15 ahead); 4 fully connected layers (tanh, then exp) give one
 Gaussian std in frames per channel. The cleaned channel is the Gaussian-weighted
 average of the noisy channel over the window (weights renormalised over the frames
-that exist at the clip's ends). Root channels pass through unchanged; gaps are bridged
+that exist at the clip's ends). The root's position and rotation, which the paper passes
+through, get a Gaussian over the same window whose width grows with the noise found in
+it (:mod:`.root`; ``root_sigma_frames=0`` passes them through); gaps are bridged
 linearly first (use ``ebd>ebf`` for data with gaps).
 
 Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtracted
@@ -18,10 +20,10 @@ Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtr
 31 free filter weights per channel (softmax) instead of a Gaussian. Each variant has its
 own weights folder, ``weights/ebf``, ``weights/ebf-bias``, ``weights/ebf-free``, ...
 
-Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J), 0 on the channels
-passed through unchanged (root position and rotation): ``filter_sigma_frames``, the
-filter's std in frames (for free filters, the std of the weights over the window), and
-with ``bias=true`` ``bias`` in degrees (already subtracted).
+Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
+the filter's std in frames (for free filters, the std of the weights over the window;
+on the root's position and rotation channels the root filter's), and with ``bias=true``
+``bias`` in degrees (already subtracted; 0 on the root's channels).
 
 Training: the train split, every clip every epoch (played at a random speed
 within ±50 %) with fresh angular noise of 0.1, 0.5 and
@@ -44,6 +46,7 @@ from workbench.engine import CleanResult, EngineInfo
 from ..identity import rewrap_angles
 from .base import ARCH, WindowEngine, TrainingParams
 from .features import RADIUS
+from .root import clean_root
 
 #: training corruptions: every epoch each clip gets one copy per slot, its spec drawn
 #: from the slot. Angular noise of 0.1, 0.5 and 0.9 channel stds (Mall et al. §4.1)
@@ -54,6 +57,20 @@ BIAS_TRAINING_SLOTS = tuple(tuple(f"{model}:{k}" for model in ("angular", "bias"
 INITIAL_SIGMA_FRAMES = 4.0
 
 CITATION = "Mall, Lal, Agrawal, Hajnik, Nguyen, Carr, Kavan, Vouga 2017, Deep recurrent mocap cleaning, §3"
+
+
+@dataclass(frozen=True)
+class FilterParams(TrainingParams):
+    """Parameters of every filter engine (EBF, BF, NN)."""
+
+    #: widest Gaussian on the root's channels, frames, reached when the window is noisy
+    #: (:mod:`.root`; 0: the root passes through, as in the paper)
+    root_sigma_frames: float = 5.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not (math.isfinite(self.root_sigma_frames) and self.root_sigma_frames >= 0):
+            raise ValueError(f"root_sigma_frames must be a number >= 0, got {self.root_sigma_frames}")
 
 
 class FilterEngine(WindowEngine):
@@ -133,6 +150,11 @@ class FilterEngine(WindowEngine):
             full = np.zeros_like(Y)
             full[:, cols] = value
             diagnostics[key] = full
+        if self.params.root_sigma_frames > 0 and data.n_frames:
+            skeleton = observation.skeleton
+            Y[:, :6], sigma = clean_root(data.X[:, :6], self.params.root_sigma_frames, skeleton.unit_cm,
+                                         skeleton.rotation_order(0))
+            diagnostics["filter_sigma_frames"][:, :6] = np.repeat(sigma, 3, axis=1)
         return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation)), diagnostics)
 
     def stream(self, skeleton, fps: float):
@@ -148,7 +170,7 @@ class EBF(FilterEngine):
     """Encoder-Bidirectional-Filter: adaptive Gaussian filter per channel and frame."""
 
     @dataclass(frozen=True)
-    class Params(TrainingParams):
+    class Params(FilterParams):
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 126)
         lstm_units: int = field(default=64, metadata=ARCH)
         #: also predict and subtract a per-channel bias (for biased noise)
@@ -176,7 +198,7 @@ class BF(FilterEngine):
     ENCODER = False
 
     @dataclass(frozen=True)
-    class Params(TrainingParams):
+    class Params(FilterParams):
         #: LSTM units per direction in each of the two B-LSTM layers
         lstm_units: int = field(default=64, metadata=ARCH)
 
@@ -195,7 +217,7 @@ class NN(FilterEngine):
     RECURRENT = False
 
     @dataclass(frozen=True)
-    class Params(TrainingParams):
+    class Params(FilterParams):
         epochs: int = 45
 
     info = EngineInfo(

@@ -70,7 +70,7 @@ class WindowNet(nn.Module):
                  dropout: float, window: int) -> None:
         super().__init__()
         self.encoder = mlp((n_in,) + ENCODER_WIDTHS, tanh_last=True) if encoder else nn.Identity()
-        width = ENCODER_WIDTHS[-1] if encoder else n_in
+        self.code_width = width = ENCODER_WIDTHS[-1] if encoder else n_in
         if recurrent:
             self.core: nn.Module = WindowLSTM(width, lstm_units, dropout)
             self.head = mlp((2 * lstm_units,) + HEAD_WIDTHS + (n_out,), tanh_last=False)

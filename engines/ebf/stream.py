@@ -1,7 +1,8 @@
 """Streaming EBF (and BF, NN): frames go in one at a time; each cleaned frame comes out
 ``RADIUS`` = 15 frames later, equal (to float precision) to offline cleaning of the whole
 take, because both evaluate exactly the same 31-frame window per output frame with the
-same edge padding (the first frame repeated before the take, the last after it).
+same edge padding (the first frame repeated before the take, the last after it). The
+root's filter (:mod:`.root`) also sees only the window.
 
 >>> stream = engine.stream(motion.skeleton, motion.fps)
 >>> out = [row for f in motion.channels if (row := stream.push(f)) is not None]
@@ -20,7 +21,36 @@ import numpy as np
 from workbench.core.skeleton import Skeleton
 from workbench.engine import EngineError
 
-from .features import RADIUS, VELOCITY_BASELINE, Layout, root_angular_velocity_dps
+from .features import RADIUS, VELOCITY_BASELINE, Layout, rotation_rate_dps
+from .root import root_frames, roughness, smooth_root
+
+
+class Window:
+    """The last ``size`` frames of a stream, oldest first: one array (size, ...) per
+    named field, shifted in place (cheaper than stacking per-frame arrays every frame)."""
+
+    def __init__(self, size: int, **fields: tuple[tuple[int, ...], type]) -> None:
+        self.arrays = {name: np.empty((size, *shape), dtype) for name, (shape, dtype) in fields.items()}
+        self.count = 0
+
+    @property
+    def full(self) -> bool:
+        return self.count == len(next(iter(self.arrays.values())))
+
+    def append(self, **values) -> None:
+        for name, value in values.items():
+            self.arrays[name][self.count] = value
+        self.count += 1
+
+    def last(self) -> dict[str, np.ndarray]:
+        """The newest frame's fields (views: writing to them changes the window)."""
+        return {name: a[self.count - 1] for name, a in self.arrays.items()}
+
+    def pop(self) -> None:
+        """Drop the oldest frame."""
+        for a in self.arrays.values():
+            a[:-1] = a[1:]
+        self.count -= 1
 
 
 class FilterStream:
@@ -34,14 +64,20 @@ class FilterStream:
         self.layout = Layout.of(skeleton)
         self.fps = float(fps)
         self.width = 3 + 3 * skeleton.n_joints
+        self.unit_cm = skeleton.unit_cm
         self._reset()
 
     def _reset(self) -> None:
-        self._codes: deque = deque()      # (E,) codes of the window frames
-        self._values: deque = deque()     # (C,) unwrapped, anchored angles (degrees)
-        self._valid: deque = deque()      # the window frame exists
+        C = self.layout.n_channels
+        self._window = Window(
+            2 * RADIUS + 1,
+            code=((self.engine.net_.code_width,), np.float32),  # the frame's code
+            values=((C,), float),                # unwrapped, anchored angles (degrees)
+            root=((12,), float),                 # the root (:func:`.root.root_frames`)
+            rough=((2, 3), float),               # root roughness (NaN: not known)
+            valid=((), bool))                    # the window frame exists
         self._pending: deque = deque()    # raw rows (D,) not yet output
-        self._root: deque = deque(maxlen=VELOCITY_BASELINE + 1)  # recent root angles (3,)
+        self._recent: deque = deque(maxlen=VELOCITY_BASELINE + 1)  # the last frames' roots (12,)
         self._last_raw: np.ndarray | None = None
         self._correction = None           # whole turns added by unwrapping, per channel
         self._anchor = None               # whole turns that anchor each channel
@@ -76,18 +112,23 @@ class FilterStream:
         if row.size != self.width or not np.isfinite(row).all():
             raise EngineError(f"stream frames must be {self.width} finite channel values (no gaps)")
         values = self._unwrap(row[self.layout.columns])
-        self._root.append(row[3:6])
-        velocity = root_angular_velocity_dps(np.stack(self._root), self.layout.root_order, self.fps)[-1]
+        root = root_frames(row[None, :6], self.layout.root_order)[0]
+        self._recent.append(root)
+        velocity = rotation_rate_dps(self._recent[0][3:].reshape(3, 3), root[3:].reshape(3, 3),
+                                     len(self._recent) - 1, self.fps)
+        if len(self._recent) >= 3:  # the previous frame's roughness is known now
+            self._window.last()["rough"][:] = roughness(np.stack(list(self._recent)[-3:]), self.unit_cm)[0]
         features = self.engine.norm_(np.concatenate([values, velocity]))
         with torch.inference_mode():
-            code = self.engine.net_.encode(torch.from_numpy(features.astype(np.float32))[None])[0]
+            code = self.engine.net_.encode(torch.from_numpy(features.astype(np.float32))[None])[0].numpy()
+        frame_fields = dict(code=code, values=values, root=root, rough=np.nan)
         if self._last_raw is None:
             for _ in range(RADIUS):  # the first frame repeated before the take
-                self._append(code, values, False)
+                self._window.append(**frame_fields, valid=False)
         self._last_raw = row
-        self._append(code, values, True)
+        self._window.append(**frame_fields, valid=True)
         self._pending.append(row)
-        return self._emit() if len(self._codes) == 2 * RADIUS + 1 else None
+        return self._emit() if self._window.full else None
 
     def flush(self) -> np.ndarray:
         """Clean the frames still waiting (the last frame repeated after the take);
@@ -97,28 +138,26 @@ class FilterStream:
         out = []
         with torch_threads(1):
             while self._pending:
-                while len(self._codes) < 2 * RADIUS + 1:  # (a take shorter than the window: more)
-                    self._append(self._codes[-1], self._values[-1], False)
+                while not self._window.full:  # (a take shorter than the window: more)
+                    self._window.append(**{**self._window.last(), "rough": np.nan, "valid": False})
                 out.append(self._emit())
         self._reset()
         return np.array(out).reshape(-1, self.width)
 
-    def _append(self, code, values: np.ndarray, valid: bool) -> None:
-        self._codes.append(code)
-        self._values.append(values)
-        self._valid.append(valid)
-
     def _emit(self) -> np.ndarray:
         import torch
 
+        w = self._window.arrays
         with torch.inference_mode():
-            pred, _ = self.engine._predict(
-                self.engine.net_, torch.stack(list(self._codes))[None],
-                torch.from_numpy(np.stack(self._values))[None], torch.tensor([list(self._valid)]))
+            pred, _ = self.engine._predict(self.engine.net_, torch.from_numpy(w["code"])[None],
+                                           torch.from_numpy(w["values"])[None], torch.from_numpy(w["valid"])[None])
         pred = pred[0].double().numpy()
         row = self._pending.popleft().copy()
         cols = self.layout.columns
         row[cols] = pred + 360.0 * np.round((row[cols] - pred) / 360.0)  # back on the input's branch
-        for buf in (self._codes, self._values, self._valid):
-            buf.popleft()
+        if self.engine.params.root_sigma_frames > 0:
+            root, _ = smooth_root(w["root"][None], w["rough"][None], w["valid"][None], row[None, 3:6],
+                                  self.engine.params.root_sigma_frames, self.layout.root_order)
+            row[:6] = root[0]
+        self._window.pop()
         return row
