@@ -21,7 +21,8 @@ from workbench.engine import Engine, EngineError
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
-#: field metadata marking parameters that change the network (and so the weights folder)
+#: field metadata marking parameters that change the trained network, its shape or its
+#: training data (and so the weights folder)
 ARCH = {"architecture": True}
 #: windows evaluated per forward pass at inference (bounds memory)
 INFERENCE_CHUNK = 4096
@@ -107,7 +108,9 @@ class WindowEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from engines.torch_support import load_module_arrays
 
-        saved = {k: v for k, v in (manifest.get("params") or {}).items() if k in architecture(self.params)}
+        params = manifest.get("params") or {}
+        # an architecture parameter newer than the weights: they were trained with its default
+        saved = {k: params.get(k, default) for k, default in architecture(self.Params()).items()}
         if saved != architecture(self.params):
             raise EngineError(f"engine {self.info.name!r}: these weights were trained with {saved}, "
                               f"not {architecture(self.params)}; train this variant first")

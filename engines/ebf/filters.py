@@ -17,8 +17,12 @@ linearly first (use ``ebd>ebf`` for data with gaps).
 
 Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtracted
 (trained on angular, constant-bias and sinusoidal-bias noise); ``free=true`` predicts
-31 free filter weights per channel (softmax) instead of a Gaussian. Each variant has its
-own weights folder, ``weights/ebf``, ``weights/ebf-bias``, ``weights/ebf-free``, ...
+31 free filter weights per channel (softmax) instead of a Gaussian; ``positions=true``
+(our addition) is also trained on joint-position noise solved back to angles (a fourth
+copy of every clip with ``spatial:0.5``, ``spatial:1`` or ``spatial-ends:0.5,0.1``), as
+marker noise reaches a real take's angles: the paper's angular noise is independent
+per channel, position noise is not. Each variant has its own weights folder,
+``weights/ebf``, ``weights/ebf-bias``, ``weights/ebf-positions``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
 the filter's std in frames (for free filters, the std of the weights over the window;
@@ -53,6 +57,9 @@ from .root import clean_root
 TRAINING_SLOTS = (("angular:0.1",), ("angular:0.5",), ("angular:0.9",))
 #: the bias variant's slots: angular, constant-bias and sinusoidal-bias noise mixed
 BIAS_TRAINING_SLOTS = tuple(tuple(f"{model}:{k}" for model in ("angular", "bias", "sine")) for k in (0.1, 0.5, 0.9))
+#: the positions variant's extra slot: joint-position noise solved back to angles, as
+#: marker noise reaches the angles of a real take
+POSITION_TRAINING_SLOT = ("spatial:0.5", "spatial:1", "spatial-ends:0.5,0.1")
 #: filter width the network starts from, frames
 INITIAL_SIGMA_FRAMES = 4.0
 
@@ -88,6 +95,10 @@ class FilterEngine(WindowEngine):
     @property
     def free(self) -> bool:
         return getattr(self.params, "free", False)
+
+    @property
+    def positions(self) -> bool:
+        return getattr(self.params, "positions", False)
 
     def _build_net(self, n_channels: int):
         import torch
@@ -127,7 +138,7 @@ class FilterEngine(WindowEngine):
         return out, diag
 
     def _training_pairs(self, motions: Sequence[Motion], epoch: int) -> list[tuple[Observation, Motion]]:
-        slots = BIAS_TRAINING_SLOTS if self.bias else TRAINING_SLOTS
+        slots = (BIAS_TRAINING_SLOTS if self.bias else TRAINING_SLOTS) + ((POSITION_TRAINING_SLOT,) if self.positions else ())
         rng = np.random.default_rng([self.params.seed, 3, epoch])
         seeds = iter(self.epoch_seeds(epoch, len(motions) * len(slots)))
         pairs = []
@@ -177,6 +188,8 @@ class EBF(FilterEngine):
         bias: bool = field(default=False, metadata=ARCH)
         #: free filter shapes (31 softmax weights per channel) instead of Gaussians
         free: bool = field(default=False, metadata=ARCH)
+        #: also trained on joint-position noise (for marker-based takes; our addition)
+        positions: bool = field(default=False, metadata=ARCH)
 
         def __post_init__(self) -> None:
             super().__post_init__()

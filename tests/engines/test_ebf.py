@@ -310,13 +310,24 @@ def test_each_variant_has_its_own_weights_folder():
     assert registry.create("ebf", pretrained=False).default_weights_dir().name == "ebf"
     assert registry.create("ebf:bias=true", pretrained=False).default_weights_dir().name == "ebf-bias"
     assert registry.create("ebf:free=true,bias=true", pretrained=False).variant == "ebf-bias-free"
+    assert registry.create("ebf:positions=true", pretrained=False).default_weights_dir().name == "ebf-positions"
     assert registry.create("ebf:epochs=3", pretrained=False).default_weights_dir().name == "ebf"
     assert registry.create("bf", pretrained=False).default_weights_dir().name == "bf"
     with pytest.raises(EngineError):
         registry.create("ebf:lstm_units=0")
 
 
-@pytest.mark.parametrize("name", ["bf", "nn"])
+def test_positions_variant_also_trains_on_joint_position_noise(tiny):
+    """Every clip gets a fourth training copy, with spatial noise: it moves the root too,
+    which angular noise leaves alone."""
+    plain = registry.create("ebf:time_scale_pct=0", pretrained=False)._training_pairs(tiny, 0)
+    pairs = registry.create("ebf:positions=true,time_scale_pct=0", pretrained=False)._training_pairs(tiny, 0)
+    assert len(plain) == 3 * len(tiny) and len(pairs) == 4 * len(tiny)
+    root_moved = [not np.allclose(obs.motion.channels[:, :6], truth.channels[:, :6]) for obs, truth in pairs]
+    assert root_moved == [False, False, False, True] * len(tiny)
+
+
+@pytest.mark.parametrize("name", ["bf", "nn", "ebf:positions=true"])
 def test_ablations_have_committed_weights(name, walk):
     engine = registry.create(name)
     res = engine.clean(parse_corruption("angular:0.5").apply(walk.slice(0, 60), seed=0))
