@@ -67,9 +67,7 @@ def draw_filter_widths(fig, take: Take, runs: list[EngineRun], selected: tuple[i
     if not maps:
         plot_note(fig.subplots(), WAITING if not runs else NO_WIDTHS if len(runs) == 1 else NO_WIDTHS_ANY)
         return []
-    # the 99th percentile: a few channels filtered flat (sigma of tens of frames, a box
-    # filter over the window) would otherwise leave every other width dark
-    vmax = max(float(np.nanpercentile(s, 99)) for _, s in maps)
+    vmax = max(float(np.nanmax(s, initial=0.0)) for _, s in maps)
     axes = np.atleast_1d(fig.subplots(len(maps), 1, sharex=True, squeeze=False)[:, 0]).tolist()
     names = take.motion.skeleton.names
     for ax, (spec, sigma) in zip(axes, maps, strict=True):
