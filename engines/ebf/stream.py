@@ -31,11 +31,11 @@ class Window:
 
     def __init__(self, size: int, **fields: tuple[tuple[int, ...], type]) -> None:
         self.arrays = {name: np.empty((size, *shape), dtype) for name, (shape, dtype) in fields.items()}
-        self.count = 0
+        self.size, self.count = size, 0
 
     @property
     def full(self) -> bool:
-        return self.count == len(next(iter(self.arrays.values())))
+        return self.count == self.size
 
     def append(self, **values) -> None:
         for name, value in values.items():
