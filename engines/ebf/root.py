@@ -1,21 +1,21 @@
 """The root's trajectory in EBF's 31-frame window (our addition). Mall et al. pass the
 root through: their noise leaves it clean. Joint-position noise solved back to angles
 (``spatial``) reaches it, and a noisy root orientation turns the whole cleaned body, so
-``ebf`` left such takes worse than it got them (test split, ``spatial:1``: mpjpe 2.95
-cm, the input 1.83).
+``ebf`` left such takes worse than it got them (test split, 5 seeds, ``spatial:1``:
+mpjpe 2.93 cm, the input 1.81; with this filter 1.59).
 
 So each window's root position and rotation get a Gaussian of width ``max_sigma * n^2 /
 (n^2 + gate^2)`` frames, with n the noise found in the window: 1.4826 / sqrt 6 times the
 median absolute second difference of the positions (cm) and of the rotation's frame
 to frame steps (degrees), over the window's inner 29 frames. At 120 fps a clean CMU
 root's median second differences are a few hundredths of a centimetre and about a
-tenth of a degree (walk 02_01: 0.02-0.035 cm, 0.09-0.27 degrees), one centimetre of
-``spatial`` noise gives several tenths of a centimetre and several degrees; the gates
-(:data:`GATE_CM`, :data:`GATE_DEG`) sit between: a clean root is barely touched (a
-filter of about a third of a frame), a noisy one gets nearly ``max_sigma``. Rotations
-are averaged as matrices and projected back onto rotations (the chordal mean; Euler
-channels swing wildly near gimbal lock). Everything comes from the window, so a stream
-gives what offline cleaning gives.
+tenth of a degree (walk 02_01: 0.02-0.035 cm, 0.09-0.27 degrees); under ``spatial:1``
+n is about 1 cm and 3.6 degrees, under ``spatial-ends:0.5,0.1`` 0.11 cm and 0.37
+degrees. The gates (:data:`GATES`, 0.17 cm and 0.3 degrees) sit between: a clean root
+is barely touched (a filter of about a third of a frame), a noisy one gets nearly
+``max_sigma``. Rotations are averaged as matrices and projected back onto rotations
+(the chordal mean; Euler channels swing wildly near gimbal lock). Everything comes
+from the window, so a stream gives what offline cleaning gives.
 
 A frame's root is kept as 12 numbers (:func:`root_frames`): its position (file units)
 and its rotation matrix, row-major.
