@@ -56,10 +56,12 @@ def roughness(frames: np.ndarray, unit_cm: float) -> np.ndarray:
 
 def _median_of_numbers(a: np.ndarray) -> np.ndarray:
     """(...) median of ``a`` (..., M) along its last axis over the non-NaN entries (0 for none)."""
-    flat = a.reshape(-1, a.shape[-1])
-    s = np.sort(flat, axis=-1)  # NaN last
-    k = np.maximum(flat.shape[1] - np.count_nonzero(np.isnan(flat), axis=-1), 1)
-    rows = np.arange(flat.shape[0])
+    M = a.shape[-1]
+    s = np.sort(a.reshape(-1, M), axis=-1)  # NaN last
+    if not np.isnan(s[:, -1]).any():  # all numbers (windows inside the take)
+        return (0.5 * (s[:, (M - 1) // 2] + s[:, M // 2])).reshape(a.shape[:-1])
+    k = np.maximum(M - np.count_nonzero(np.isnan(s), axis=-1), 1)
+    rows = np.arange(s.shape[0])
     return np.nan_to_num(0.5 * (s[rows, (k - 1) // 2] + s[rows, k // 2])).reshape(a.shape[:-1])
 
 
@@ -83,8 +85,11 @@ def smooth_root(frames: np.ndarray, rough: np.ndarray, valid: np.ndarray, centre
         out[:, :3] = np.where(wide[:, :1], mean[:, 0, :3], out[:, :3])
         i = np.flatnonzero(wide[:, 1])
         if i.size:
-            U, _, Vt = np.linalg.svd(mean[i, 1, 3:].reshape(-1, 3, 3))
-            U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]  # a rotation, not a reflection
+            M = mean[i, 1, 3:].reshape(-1, 3, 3)
+            U, _, Vt = np.linalg.svd(M)
+            flip = np.linalg.det(M) < 0  # nearest is a reflection (rotations spread past 90 degrees)
+            if flip.any():
+                U[flip, :, 2] *= -1.0
             out[i, 3:] = nearest_euler(matrix_to_euler(U @ Vt, order), centre_euler[i])
     return out, sigma
 
