@@ -116,7 +116,7 @@ class FilterStream:
         self._recent.append(root)
         velocity = rotation_rate_dps(self._recent[0][3:].reshape(3, 3), root[3:].reshape(3, 3),
                                      len(self._recent) - 1, self.fps)
-        if len(self._recent) >= 3:  # the previous frame's roughness is known now
+        if self.engine.params.root_sigma_frames > 0 and len(self._recent) >= 3:  # the previous frame's roughness
             self._window.last()["rough"][:] = roughness(np.stack(list(self._recent)[-3:]), self.unit_cm)[0]
         features = self.engine.norm_(np.concatenate([values, velocity]))
         with torch.inference_mode():
