@@ -138,7 +138,9 @@ class FilterEngine(WindowEngine):
         return out, diag
 
     def _training_pairs(self, motions: Sequence[Motion], epoch: int) -> list[tuple[Observation, Motion]]:
-        slots = (BIAS_TRAINING_SLOTS if self.bias else TRAINING_SLOTS) + ((POSITION_TRAINING_SLOT,) if self.positions else ())
+        slots = BIAS_TRAINING_SLOTS if self.bias else TRAINING_SLOTS
+        if self.positions:
+            slots += (POSITION_TRAINING_SLOT,)
         rng = np.random.default_rng([self.params.seed, 3, epoch])
         seeds = iter(self.epoch_seeds(epoch, len(motions) * len(slots)))
         pairs = []
