@@ -254,11 +254,12 @@ class MSSA(Engine):
         u = np.where(seen, (sub - centre) / model.scale, 0.0)
         p = self.params
         seen_at = observed[:, cols]
-        var = np.square(noise_std(u, seen_at)) + p.noise_floor ** 2
+        sigma2 = np.square(noise_std(u, seen_at))
+        var = sigma2 + p.noise_floor ** 2
         weight, welsch = (1.0 / var, p.welsch_p_sigma * np.sqrt(var)) if p.adaptive else (1.0, p.welsch_p_std)
         mu = None
         if p.smoothness > 0:
-            mu = 0.5 * p.smoothness * weight * smoothing_ratio(u, var, seen_at.mean(axis=0))
+            mu = 0.5 * p.smoothness * weight * smoothing_ratio(u, sigma2, seen_at.mean(axis=0))
         result = robust_filter(u, seen_at * weight, model.projector, p.prior_weight, welsch, p.robust,
                                p.tol_rel_cost, p.max_iterations, p.solver, mu,
                                p.refit_prior_weight, p.start_median_frames)

@@ -161,6 +161,22 @@ def test_smoothness_term_is_the_kalman_smoothers_prior(fitted, walk):
         with_params(fitted, solver="alternating")
 
 
+def test_engine_smoothness_uses_the_noise_kalman_would_find(fitted, walk):
+    # the engine picks each channel's smoothing ratio from the noise it measures, not
+    # from the noise plus the model-error floor of the data weights: with the bases term
+    # and the robust weights off it is the kalman engine (at light noise the floor's
+    # inflated variance put it 7 times further from it than here)
+    cols = modelled_angle_columns(fitted, walk)
+    X = walk.channels
+    X[:, cols] += np.random.default_rng(2).normal(size=(walk.n_frames, cols.size)) * 0.3
+    obs = Observation(walk.with_channels(X))
+    smoother = with_params(fitted, prior_weight=1e-9, robust=False, refit_prior_weight=0.0).clean(obs)
+    kalman = registry.create("kalman").clean(obs)
+    gap = np.sqrt(np.mean(np.square(smoother.motion.channels[:, cols] - kalman.motion.channels[:, cols])))
+    kalman_error = np.sqrt(np.mean(np.square(kalman.motion.channels[:, cols] - walk.channels[:, cols])))
+    assert gap < 0.15 * kalman_error, (gap, kalman_error)
+
+
 def test_noise_estimate_tracks_the_added_noise(fitted, walk):
     model = fitted.models_["angles"]
     X = walk.channels[:, model.columns]
