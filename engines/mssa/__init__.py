@@ -57,8 +57,9 @@ energy_kept=0.99``; ``energy_kept`` changes the bases, so that one needs ``workb
 train`` first):
 
 * ``adaptive=True``: the noise std sigma_l of every channel is estimated from the
-  observation itself (MAD of its second differences, :func:`.engine.noise_std`; outliers
-  and gaps do not bias it). Samples are weighted by 1 / (sigma_l^2 + noise_floor^2) and
+  observation itself as the ``kalman`` engine estimates it (median absolute second
+  difference, :func:`engines.smoothing.measurement_variance`; outliers and gaps do not
+  bias it). Samples are weighted by 1 / (sigma_l^2 + noise_floor^2) and
   the Welsch scale is ``welsch_p_sigma`` sqrt(sigma_l^2 + noise_floor^2). Clean data
   (gaps only) are then kept almost exactly and the gaps filled from the bases; heavy
   noise gets strong smoothing; the outlier threshold follows the noise level.
@@ -120,7 +121,7 @@ the same, median start 5 frames             0.73  1.67  2.58  1.96  3.22  8.38  
 the same, median start 9 frames             0.73  1.67  2.58  1.96  3.22  8.35  0.98
 lambda 3, smoothness 1, refit 0.3           0.72  1.62  2.53  2.11  3.44  8.41  0.98
 lambda 3, smoothness 1, refit 0.1           0.72  1.62  2.53  2.38  3.66  8.41  0.99
-refit 1, median 5, ratio from sigma (dflt)  0.66  1.65  2.57  1.98  3.23  8.09  0.95
+refit 1, median 5, ratio from sigma (dflt)  0.66  1.65  2.57  1.98  3.23  8.10  0.94
 kalman                                      0.47  1.70  2.69  9.96  17.2  12.3  1.16
 ========================================== ===== ===== ===== ===== ===== ===== =====
 

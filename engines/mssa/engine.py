@@ -19,7 +19,7 @@ from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
 from ..identity import bridge_gaps
-from ..smoothing import smooth_observed, smoothing_ratio
+from ..smoothing import measurement_variance, smooth_observed, smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -58,27 +58,6 @@ class SpaceModel:
         """Share of the training energy the K kept bases hold."""
         K = self.bases.shape[1]
         return float(self.spectrum[:K].sum() / self.spectrum.sum())
-
-
-def noise_std(u: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """(L,) robust estimate of each channel's white-noise std in ``u`` (F, L): the MAD
-    of its second differences over fully observed frame triples, / sqrt(6) (a second
-    difference of white noise has variance 6 sigma^2; at 120 fps the clean motion's
-    own second differences are small next to it, and the MAD ignores outliers).
-    Channels with fewer than 8 such triples take the median of the others."""
-    F, L = u.shape
-    if F < 3:
-        return np.zeros(L)
-    d2 = np.diff(u, n=2, axis=0)
-    ok = observed[2:] & observed[1:-1] & observed[:-2]
-    d2 = np.where(ok, d2, np.nan)
-    enough = ok.sum(axis=0) >= 8
-    sigma = np.zeros(L)
-    if enough.any():
-        med = np.nanmedian(d2[:, enough], axis=0)
-        sigma[enough] = 1.4826 * np.nanmedian(np.abs(d2[:, enough] - med), axis=0) / np.sqrt(6.0)
-        sigma[~enough] = np.median(sigma[enough])
-    return sigma
 
 
 def _ancestors_observed(skeleton: Skeleton, observed: np.ndarray) -> np.ndarray:
@@ -254,7 +233,7 @@ class MSSA(Engine):
         u = np.where(seen, (sub - centre) / model.scale, 0.0)
         p = self.params
         seen_at = observed[:, cols]
-        sigma2 = np.square(noise_std(u, seen_at))
+        sigma2 = measurement_variance(u, seen_at)
         var = sigma2 + p.noise_floor ** 2
         weight, welsch = (1.0 / var, p.welsch_p_sigma * np.sqrt(var)) if p.adaptive else (1.0, p.welsch_p_std)
         mu = None
