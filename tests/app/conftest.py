@@ -39,6 +39,20 @@ class Widths(Engine):
         return CleanResult(motion, {"filter_sigma_frames": widths})
 
 
+class Weights(Engine):
+    """Bridges gaps and reports made-up robust data weights (F, C): every 7th entry an
+    outlier (0.02), the rest 1."""
+
+    info = EngineInfo(name="test-weights", summary="test: bridge gaps, report data weights",
+                      tasks=frozenset({"fill"}))
+
+    def clean(self, observation: Observation, /) -> CleanResult:
+        motion = observation.bridged()
+        weights = np.ones(motion.channels.shape)
+        weights.flat[::7] = 0.02
+        return CleanResult(motion, {"robust_weight": weights})
+
+
 class Boom(Engine):
     info = EngineInfo(name="test-boom", summary="test: always fails", tasks=frozenset({"fill"}))
 
@@ -58,7 +72,7 @@ def test_engines():
     """The test engines, registered for the app tests only (other test folders list
     every registered engine)."""
     with pytest.MonkeyPatch.context() as mp:
-        for cls in (Widths, Boom, Crash):
+        for cls in (Widths, Weights, Boom, Crash):
             mp.setitem(registry._registered, cls.info.name, cls)
         yield
 

@@ -69,6 +69,20 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk):
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
     names = sorted(p.name for p in (tmp_path / "shots").iterdir())
-    assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "report.png"]
+    assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "outliers.png", "report.png"]
     assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
     assert "Traceback" not in run.stderr
+
+
+def test_the_report_adds_the_outlier_weights_when_an_engine_reports_them(take):
+    from workbench.app.report import report_figure
+    from workbench.app.take import run_engine
+
+    def titles(specs):
+        fig = report_figure(take, [run_engine(s, take) for s in specs], 10)
+        return [ax.get_title(loc="left").split(" · ")[0] for ax in fig.axes if ax.get_title(loc="left")]
+
+    assert {"filter widths", "data weights"} <= set(titles(["test-widths", "test-weights"]))
+    only_weights = titles(["test-weights"])
+    assert "data weights" in only_weights and "filter widths" not in only_weights
+    assert "data weights" not in titles(["test-widths"])

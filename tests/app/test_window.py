@@ -10,6 +10,7 @@ from app_helpers import FRAME, assert_colour, error_colour, rgb, settle
 from PySide6.QtCore import QPoint, Qt
 
 from workbench.app.take import EngineRun
+from workbench.core.motion import channel_mask
 from workbench.plots.style import CURSOR, TRUTH
 
 
@@ -107,8 +108,9 @@ def test_clicking_a_joint_selects_it_in_the_plots(window, qtbot, take):
     assert window.session.selected == (foot,)
     labels = [line.get_label() for line in window.plots.canvases[0].figure.axes[0].get_lines()]
     assert "RightFoot · identity" in labels
-    window.plots.setCurrentIndex(2)
-    ticks = [t.get_text() for t in window.plots.canvases[2].figure.axes[0].get_xticklabels()]
+    bones = tab(window, "Bone lengths")
+    window.plots.setCurrentIndex(bones)
+    ticks = [t.get_text() for t in window.plots.canvases[bones].figure.axes[0].get_xticklabels()]
     assert ticks == ["RightLeg\n→ RightFoot"], "the bone plot shows the selected joint's bone"
 
 
@@ -129,6 +131,31 @@ def test_checking_an_engine_in_the_list_runs_it(window, qtbot):
     item.setCheckState(Qt.Checked)
     settle(qtbot, window)
     assert window.session.specs[-1] == "lerp" and isinstance(window.session.runs["lerp"], EngineRun)
+
+
+def tab(window, title: str) -> int:
+    """The index of the plot tab called ``title``."""
+    return [window.plots.tabText(i) for i in range(window.plots.count())].index(title)
+
+
+def test_the_outlier_tab_shows_reported_weights_with_missing_samples_grey(window, qtbot, take):
+    s = window.session
+    s.set_specs(["identity", "test-weights"], "test-weights")
+    settle(qtbot, window)
+    index = tab(window, "Outlier weights")
+    window.plots.setCurrentIndex(index)
+    qtbot.wait(50)
+    (image,) = window.plots.canvases[index].figure.axes[0].get_images()
+    shown = image.get_array().T  # (F, C), masked where missing
+    unknown = ~channel_mask(~take.missing)
+    assert unknown.any() and np.array_equal(np.ma.getmaskarray(shown), unknown), "missing samples are grey"
+    expected = np.ones(shown.shape)
+    expected.flat[::7] = 0.02
+    assert np.array_equal(shown.compressed(), expected[~unknown]), "the reported weights, as they are"
+    s.set_current("identity")
+    qtbot.wait(50)
+    texts = [t.get_text() for t in window.plots.canvases[index].figure.axes[0].texts]
+    assert texts == ["this engine reports no outlier weights"]
 
 
 def test_the_heatmap_tab_shows_reported_widths_or_says_there_are_none(window, qtbot):

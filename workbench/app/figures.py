@@ -1,6 +1,6 @@
 """The plot panels of the app and the report, drawn into a given matplotlib Figure or
-SubFigure (no Qt): joint error over time with the gaps, the filter-width heatmaps, the
-bone-length boxes.
+SubFigure (no Qt): joint error over time with the gaps, the filter-width and data-weight
+heatmaps, the bone-length boxes.
 
 Units: errors and lengths in cm, time in seconds, filter widths in frames.
 """
@@ -9,13 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..plots import plot_bone_lengths, plot_errors, plot_filter_widths, plot_note
+from ..core.motion import channel_mask, position_unknown
+from ..plots import plot_bone_lengths, plot_data_weights, plot_errors, plot_filter_widths, plot_note
 from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
 from ..plots.timeline import Series
 from .take import EngineRun, Take, bone_choice
 
-NO_WIDTHS = "this engine reports no filter widths"
-NO_WIDTHS_ANY = "these engines report no filter widths"
 WAITING = "waiting for the engine..."
 
 
@@ -60,21 +59,65 @@ def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...
     return [ax, strip]
 
 
+def none_reported(runs: list[EngineRun], what: str) -> str:
+    """The note of a map panel whose engines report no ``what``."""
+    if not runs:
+        return WAITING
+    return f"{'this engine reports' if len(runs) == 1 else 'these engines report'} no {what}"
+
+
+def draw_maps(fig, maps: list[tuple[str, np.ndarray]], plot_one, what: str, runs: list[EngineRun]) -> list:
+    """One heatmap per (spec, (F, C) array) in ``maps``, stacked, drawn by ``plot_one(ax,
+    spec, array)``, or a note saying no engine reports ``what``. Returns the time axes."""
+    if not maps:
+        plot_note(fig.subplots(), none_reported(runs, what))
+        return []
+    axes = np.atleast_1d(fig.subplots(len(maps), 1, sharex=True, squeeze=False)[:, 0]).tolist()
+    for ax, (spec, values) in zip(axes, maps, strict=True):
+        plot_one(ax, spec, np.asarray(values))
+    for ax in axes[:-1]:
+        ax.set_xlabel("")
+    return axes
+
+
 def draw_filter_widths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list:
     """One heatmap per run that reports ``filter_sigma_frames``, on one colour scale, or
     a note saying none does. Returns the time axes."""
     maps = [(r.spec, r.filter_sigma_frames) for r in runs if r.filter_sigma_frames is not None]
-    if not maps:
-        plot_note(fig.subplots(), WAITING if not runs else NO_WIDTHS if len(runs) == 1 else NO_WIDTHS_ANY)
-        return []
-    vmax = max(float(np.nanmax(s, initial=0.0)) for _, s in maps)
-    axes = np.atleast_1d(fig.subplots(len(maps), 1, sharex=True, squeeze=False)[:, 0]).tolist()
+    vmax = max((float(np.nanmax(s, initial=0.0)) for _, s in maps), default=0.0)
     names = take.motion.skeleton.names
-    for ax, (spec, sigma) in zip(axes, maps, strict=True):
-        plot_filter_widths(ax, np.asarray(sigma), take.fps, names, f"filter widths · {spec}", vmax, selected)
-    for ax in axes[:-1]:
-        ax.set_xlabel("")
-    return axes
+    return draw_maps(fig, maps, lambda ax, spec, sigma: plot_filter_widths(
+        ax, sigma, take.fps, names, f"filter widths · {spec}", vmax, selected), "filter widths", runs)
+
+
+def unknown_samples(take: Take, n_rows: int) -> np.ndarray | None:
+    """(F, n_rows) True where a data-weight map's sample was not observed: the channel
+    layout (3 + 3J) from the missing joints, root-relative positions (3J) from the
+    joints whose position depends on a missing one; None for another layout."""
+    skeleton = take.motion.skeleton
+    if n_rows == 3 + 3 * skeleton.n_joints:
+        return ~channel_mask(~take.missing)
+    if n_rows == 3 * skeleton.n_joints:
+        return np.repeat(position_unknown(~take.missing, skeleton.parents), 3, axis=1)
+    return None
+
+
+def draw_data_weights(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list:
+    """One heatmap per run that reports ``robust_weight`` (which samples a robust
+    estimator treated as outliers), missing samples grey, or a note saying none does.
+    Returns the time axes."""
+    maps = []
+    for r in runs:
+        if r.robust_weight is not None:
+            weights = np.array(r.robust_weight, float)
+            unknown = unknown_samples(take, weights.shape[1])
+            if unknown is not None:
+                weights[unknown] = np.nan
+            maps.append((r.spec, weights))
+    names = take.motion.skeleton.names
+    return draw_maps(fig, maps, lambda ax, spec, weights: plot_data_weights(
+        ax, weights, take.fps, names, f"data weights · {spec} (dark: treated as an outlier)", selected),
+        "outlier weights", runs)
 
 
 def draw_bone_lengths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> None:

@@ -15,9 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .take import DEFAULT_CLIP, DEFAULT_CORRUPTION, EngineRun, default_engines
+from .take import DEFAULT_CLIP, DEFAULT_CORRUPTION, EngineRun, default_engines, loadable
 
 WINDOW_SIZE = (1200, 800)
+#: the outliers screenshot: a robust engine on a take with outliers
+OUTLIER_ENGINE = "mssa"
+OUTLIER_CORRUPTION = "angular:0.5+outliers:0.05"
 
 
 def has_display() -> bool:
@@ -84,8 +87,9 @@ def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption
                      frame: int = 150, joint: str = "LeftFoot", specs: list[str] | None = None) -> list[Path]:
     """The window in its main states, and the report figure, as PNG files in ``out_dir``:
     default, compare, joint (a selected joint), heatmap (the filter-width tab, of the
-    engine whose widths vary most) and report. ``specs``: the engines (default:
-    :func:`default_engines`)."""
+    engine whose widths vary most), outliers (the outlier-weight tab of
+    :data:`OUTLIER_ENGINE` on :data:`OUTLIER_CORRUPTION`) and report. ``specs``: the
+    engines (default: :func:`default_engines`)."""
     from .report import write_report
 
     out = Path(out_dir)
@@ -115,6 +119,13 @@ def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption
         s.set_current(max(widths, key=widths.get))
     window.plots.setCurrentIndex(1)
     shoot("heatmap")
+    if loadable(OUTLIER_ENGINE):  # a robust engine on outliers: the samples it rejected
+        s.set_specs([OUTLIER_ENGINE])
+        s.open(source, OUTLIER_CORRUPTION, 0)
+        settle(window)
+        s.set_frame(frame)
+        window.plots.setCurrentIndex(2)
+        shoot("outliers")
     window.plots.setCurrentIndex(0)
     paths.append(write_report(out / "report.png", source, corruption, 0, specs, frame=frame))
     window.close()

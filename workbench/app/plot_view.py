@@ -1,4 +1,5 @@
-"""The plot tabs under the 3D views: error over time, filter widths, bone lengths.
+"""The plot tabs under the 3D views: error over time, filter widths, outlier weights,
+bone lengths.
 
 Each tab is a matplotlib canvas drawn by :mod:`workbench.app.figures`. A tab is redrawn
 only when the take, the shown engines, their runs or the selection change, and only when
@@ -13,7 +14,7 @@ from matplotlib.figure import Figure
 from PySide6.QtWidgets import QTabWidget
 
 from ..plots import TimeCursor
-from .figures import draw_bone_lengths, draw_errors, draw_filter_widths
+from .figures import draw_bone_lengths, draw_data_weights, draw_errors, draw_filter_widths
 
 
 class Canvas(FigureCanvasQTAgg):
@@ -25,7 +26,8 @@ class Canvas(FigureCanvasQTAgg):
         self.update(x, self.rect().height() - y - h, w, h)
 
 
-TABS = (("Error over time", draw_errors), ("Filter widths", draw_filter_widths), ("Bone lengths", draw_bone_lengths))
+TABS = (("Error over time", draw_errors), ("Filter widths", draw_filter_widths),
+        ("Outlier weights", draw_data_weights), ("Bone lengths", draw_bone_lengths))
 
 
 class PlotTabs(QTabWidget):

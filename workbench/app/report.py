@@ -13,7 +13,7 @@ import numpy as np
 
 from ..plots import TimeCursor
 from ..plots.style import ERROR_LABEL, error_mappable
-from .figures import draw_bone_lengths, draw_errors, draw_filter_widths
+from .figures import draw_bone_lengths, draw_data_weights, draw_errors, draw_filter_widths
 from .take import EngineRun, Take, open_take, run_engine, scene_panes
 
 PANE_PX = (420, 460)
@@ -69,8 +69,12 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
     if take.truth is not None and runs:
         ax.set_title(scores_text(take, runs), fontsize="medium", loc="left")
     axes = draw_errors(errors, take, runs, selected)
-    widths, bones = bottom.subfigures(1, 2, width_ratios=[1.1, 1.0])
-    axes += draw_filter_widths(widths, take, runs, selected)
+    maps, bones = bottom.subfigures(1, 2, width_ratios=[1.1, 1.0])
+    widths = any(r.filter_sigma_frames is not None for r in runs)
+    weights = any(r.robust_weight is not None for r in runs)
+    panels = [draw_filter_widths] * (widths or not weights) + [draw_data_weights] * weights
+    for sub, draw in zip(maps.subfigures(len(panels), 1, squeeze=False)[:, 0], panels, strict=True):
+        axes += draw(sub, take, runs, selected)
     draw_bone_lengths(bones, take, runs, selected)
     TimeCursor(axes, take.fps, animated=False).move(frame, blit=False)
     return fig

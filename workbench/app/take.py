@@ -186,6 +186,12 @@ class EngineRun:
         """(F, C) the filter widths the engine chose, in frames, if it reports them."""
         return self.diagnostics.get("filter_sigma_frames")
 
+    @property
+    def robust_weight(self) -> np.ndarray | None:
+        """(F, C) the data weight a robust estimator gave every sample (near 0: treated as
+        an outlier, 0 where missing), if the engine reports them."""
+        return self.diagnostics.get("robust_weight")
+
 
 def run_engine(spec: str, take: Take) -> EngineRun:
     """Create the engine ``spec`` and clean the take's observation (raises what the

@@ -1,9 +1,17 @@
-"""The filter widths a filter-predicting engine chose: a heatmap of channels x time.
+"""Heatmaps of channels x time: what an engine chose for every channel and frame.
 
-Units: widths (the Gaussian kernel's standard deviation) in frames; time in seconds.
-The colour scale is logarithmic: widths span a fraction of a frame (a channel kept as it
-is) to hundreds (a channel averaged flat over the filter's whole reach), and both ends
-matter.
+Two kinds, drawn by one function (:func:`plot_channel_map`):
+
+* filter widths (:func:`plot_filter_widths`), the Gaussian kernel's standard deviation
+  in frames, on a logarithmic colour scale: widths span a fraction of a frame (a channel
+  kept as it is) to hundreds (a channel averaged flat over the filter's whole reach),
+  and both ends matter;
+* data weights (:func:`plot_data_weights`) of a robust estimator, 0 to 1: 1 for a
+  sample taken at face value, near 0 for one treated as an outlier; missing samples
+  (NaN) grey.
+
+Time in seconds. Rows are labelled by joint when the matrix is the channel layout (root
+position, then three angles per joint) or three coordinates per joint.
 """
 
 from __future__ import annotations
@@ -14,14 +22,20 @@ LABEL_PX = 11  # vertical room one row label needs
 #: the narrowest width on the colour scale, frames: narrower ones (0 for a channel passed
 #: through) take its colour, a Gaussian that leaves its neighbours under 1e-5 of the weight
 NARROWEST_FRAMES = 0.2
+#: colour of missing samples in the data-weight map
+MISSING_COLOUR = "#cfcfcf"
 
 
-def channel_groups(names, n_channels: int) -> list[tuple[str, int, int]]:
-    """(label, first row, stop row) of each joint's channels when the matrix is the
-    channel layout (root position, then three angles per joint), else one group."""
-    if n_channels != 3 + 3 * len(names):
-        return [("channels", 0, n_channels)]
-    return [("root position", 0, 3)] + [(name, 3 + 3 * j, 6 + 3 * j) for j, name in enumerate(names)]
+def channel_groups(names, n_channels: int) -> list[tuple[str, int, int, int | None]]:
+    """(label, first row, stop row, joint index or None) of each group of rows: the root
+    position then each joint's three angles when the matrix is the channel layout (3 +
+    3J), each joint's three coordinates when it has 3J rows, else one group."""
+    J = len(names)
+    if n_channels == 3 + 3 * J:
+        return [("root position", 0, 3, None)] + [(n, 3 + 3 * j, 6 + 3 * j, j) for j, n in enumerate(names)]
+    if n_channels == 3 * J and J:
+        return [(n, 3 * j, 3 + 3 * j, j) for j, n in enumerate(names)]
+    return [("channels", 0, n_channels, None)]
 
 
 def label_rows(n: int, first: set[int], room: float) -> list[int]:
@@ -35,27 +49,20 @@ def label_rows(n: int, first: set[int], room: float) -> list[int]:
     return sorted(keep)
 
 
-def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title: str = "",
-                       vmax: float | None = None, highlight=()) -> None:
-    """Heatmap of ``sigma_frames`` (F, C) over time (s) with a logarithmic colour bar from
-    :data:`NARROWEST_FRAMES` to ``vmax`` (default: the widest); rows labelled by joint
-    when C matches the channel layout of the joints ``names``; the rows of the joints in
-    ``highlight`` (indices) are labelled in bold."""
-    from matplotlib.colors import LogNorm
-
-    F, C = sigma_frames.shape
-    top = vmax or float(np.nanmax(sigma_frames, initial=0.0))
-    norm = LogNorm(NARROWEST_FRAMES, max(top, 10 * NARROWEST_FRAMES), clip=True)
-    im = ax.imshow(sigma_frames.T, aspect="auto", interpolation="nearest", cmap="viridis",
-                   extent=(0, F / fps, C, 0), norm=norm)
+def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: str, bar_ticks, names=(),
+                     title: str = "", highlight=()) -> None:
+    """Heatmap of ``values`` (F, C) over time (s) with a colour bar (``norm``, ``cmap``,
+    ticks at ``bar_ticks``, plain numbers); rows labelled by joint (:func:`channel_groups`
+    of the joints ``names``), those of the joints in ``highlight`` (indices) in bold."""
+    F, C = values.shape
+    im = ax.imshow(values.T, aspect="auto", interpolation="nearest", cmap=cmap, extent=(0, F / fps, C, 0), norm=norm)
     bar = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04)
-    bar.set_ticks([t for t in (0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500) if norm.vmin <= t <= norm.vmax],
-                  labels=None, minor=False)
+    bar.set_ticks(bar_ticks)
     bar.ax.yaxis.set_major_formatter("{x:g}")
     bar.ax.yaxis.set_minor_formatter("")
-    bar.set_label("σ (frames)")
+    bar.set_label(bar_label)
     groups = channel_groups(names, C)
-    bold = {j + 1 for j in highlight} if len(groups) > 1 else set()  # group i is joint i - 1
+    bold = {i for i, g in enumerate(groups) if g[3] is not None and g[3] in set(highlight)}
     keep = label_rows(len(groups), bold, ax.get_window_extent().height / LABEL_PX)
     ax.set_yticks([(groups[i][1] + groups[i][2]) / 2 for i in keep], [groups[i][0] for i in keep],
                   fontsize="x-small")
@@ -64,3 +71,26 @@ def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title
     ax.set_xlabel("time (s)")
     if title:
         ax.set_title(title, loc="left", fontsize="medium")
+
+
+def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title: str = "",
+                       vmax: float | None = None, highlight=()) -> None:
+    """Heatmap of ``sigma_frames`` (F, C) with a logarithmic colour bar from
+    :data:`NARROWEST_FRAMES` to ``vmax`` (default: the widest)."""
+    from matplotlib.colors import LogNorm
+
+    top = vmax or float(np.nanmax(sigma_frames, initial=0.0))
+    norm = LogNorm(NARROWEST_FRAMES, max(top, 10 * NARROWEST_FRAMES), clip=True)
+    ticks = [t for t in (0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500) if norm.vmin <= t <= norm.vmax]
+    plot_channel_map(ax, sigma_frames, fps, norm, "viridis", "σ (frames)", ticks, names, title, highlight)
+
+
+def plot_data_weights(ax, weights: np.ndarray, fps: float, names=(), title: str = "", highlight=()) -> None:
+    """Heatmap of a robust estimator's data ``weights`` (F, C), 0 (dark red: an outlier)
+    to 1 (white: taken at face value); NaN (missing) in :data:`MISSING_COLOUR`."""
+    import matplotlib
+    from matplotlib.colors import Normalize
+
+    cmap = matplotlib.colormaps["Reds_r"].with_extremes(bad=MISSING_COLOUR)
+    plot_channel_map(ax, np.ma.masked_invalid(weights), fps, Normalize(0.0, 1.0), cmap, "data weight",
+                     [0, 0.5, 1], names, title, highlight)
