@@ -111,7 +111,7 @@ def test_clicking_a_joint_selects_it_in_the_plots(window, qtbot, take):
     bones = tab(window, "Bone lengths")
     window.plots.setCurrentIndex(bones)
     ticks = [t.get_text() for t in window.plots.canvases[bones].figure.axes[0].get_xticklabels()]
-    assert ticks == ["RightLeg\n→ RightFoot"], "the bone plot shows the selected joint's bone"
+    assert ticks == ["RightLeg →\nRightFoot"], "the bone plot shows the selected joint's bone"
 
 
 def test_changing_the_engine_recomputes_on_the_worker(window, qtbot):

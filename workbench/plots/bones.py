@@ -33,7 +33,7 @@ def plot_bone_lengths(ax, sources: list[tuple[str, np.ndarray, str]], skeleton, 
         median = np.median(bone_lengths(truth, skeleton.parents)[:, cols] * skeleton.unit_cm, axis=0)
         ax.scatter(np.arange(len(bones)), median, s=40, color=TRUTH, edgecolor="white", zorder=4,
                    label="truth")
-    labels = [f"{skeleton.names[skeleton.parents[j]]}\n→ {skeleton.names[j]}" for j in bones]
+    labels = [f"{skeleton.names[skeleton.parents[j]]} →\n{skeleton.names[j]}" for j in bones]  # narrow: no overlap
     ax.set_xticks(np.arange(len(bones)), labels, fontsize="x-small")
     ax.set_xlim(-0.6, len(bones) - 0.4)
     ax.set_ylabel("bone length (cm)")

@@ -7,6 +7,7 @@ Units: time in seconds on the x axis (frame / fps); errors in cm.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,9 +60,28 @@ def plot_errors(ax, series: list[Series], fps: float, missing: np.ndarray | None
     outside_legend(ax)
 
 
+#: legend labels longer than this (characters) are wrapped, so a long engine spec does
+#: not squeeze the axes
+LEGEND_CHARS = 24
+
+
+def wrap_label(text: str, width: int = LEGEND_CHARS) -> str:
+    """``text`` on lines of at most ``width`` characters where it can be broken: after a
+    space or a spec's separators (``:``, ``,``, ``>``); longer pieces stay whole."""
+    lines = [""]
+    for piece in re.split(r"(?<=[ :,>])", text):
+        if lines[-1] and len(lines[-1] + piece.rstrip()) > width:
+            lines.append("")
+        lines[-1] += piece
+    return "\n".join(line.rstrip() for line in lines)
+
+
 def outside_legend(ax) -> None:
-    """The legend to the right of the axes (a fixed place: "best" made images flaky)."""
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", frameon=False, borderaxespad=0)
+    """The legend to the right of the axes (a fixed place: "best" made images flaky),
+    long labels wrapped (:func:`wrap_label`)."""
+    handles, labels = ax.get_legend_handles_labels()
+    ax.legend(handles, [wrap_label(label) for label in labels], loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              fontsize="small", frameon=False, borderaxespad=0)
 
 
 def plot_note(ax, text: str) -> None:
