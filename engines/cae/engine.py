@@ -96,9 +96,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import hole_length, interpolate_gaps
-from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations
+from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
-from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
@@ -466,13 +465,3 @@ def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.nd
     smoothed[:, [0, 2]] = S[:, :2]
     return smoothed, wrap(S[:, 2])
 
-
-def short_lever_joints(skeleton: Skeleton, lever_cm: float) -> np.ndarray:
-    """Indices of the joints with a rotation whose ``skeleton.aimed_descendants`` (the
-    nearest descendants off their own position) all lie within ``lever_cm``."""
-    out = []
-    for j in np.flatnonzero(skeleton.has_rotation):
-        reach = [np.linalg.norm(skeleton.offsets[c]) * skeleton.unit_cm for c, _ in skeleton.aimed_descendants[j]]
-        if reach and max(reach) < lever_cm:
-            out.append(int(j))
-    return np.array(out, int)

@@ -13,7 +13,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
-from workbench.core.kinematics import inverse_kinematics
+from workbench.core.kinematics import inverse_kinematics, short_lever_joints
 from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
@@ -130,6 +130,11 @@ class MSSA(Engine):
         #: "alternating": the paper's coefficient / motion updates; "cg": exact
         #: minimisation of each IRLS majoriser by conjugate gradients (same objective)
         solver: str = "cg"
+        #: space "positions": joints whose aimed children all lie within this many cm
+        #: (CMU: the hands and finger bases) keep their observed angles, smoothed by the
+        #: kalman smoother, instead of being aimed from the filtered positions (as in
+        #: ``cae``); 0: aim every joint
+        short_lever_cm: float = 5.0
 
         def __post_init__(self) -> None:
             if self.space not in SPACES:
@@ -155,6 +160,8 @@ class MSSA(Engine):
                                  'for the alternating solver')
             if self.start_median_frames < 1:
                 raise ValueError(f"start_median_frames must be at least 1, got {self.start_median_frames}")
+            if not (math.isfinite(self.short_lever_cm) and self.short_lever_cm >= 0):
+                raise ValueError(f"short_lever_cm must be 0 (off) or a length in cm, got {self.short_lever_cm}")
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -255,7 +262,13 @@ class MSSA(Engine):
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
             world = out.reshape(F, -1, 3) + root_joint[:, None]
-            root, angles = inverse_kinematics(skeleton, world, X[:, 3:].reshape(F, -1, 3))
+            short = short_lever_joints(skeleton, self.params.short_lever_cm)
+            short = short[observation.observed[:, short].any(axis=0)]
+            reference = np.array(X)
+            kept = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+            reference[:, kept] = smooth_observed(X[:, kept], mask[:, kept])
+            root, angles = inverse_kinematics(skeleton, world, reference[:, 3:].reshape(F, -1, 3),
+                                              reference_joints=short)
             out = np.concatenate([root, angles.reshape(F, -1)], axis=1)
         out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
         motion = observation.motion.with_channels(out)

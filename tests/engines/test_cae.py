@@ -325,7 +325,7 @@ def test_short_levers_keep_their_observed_angles(test_clip):
     """The hands and finger bases (children within 5 cm) come back as observed, bridged
     linearly across a hole (IK would aim them at finger positions a few mm off); with
     the anchor the observed angles are smoothed first (their noise is the observation's)."""
-    from engines.cae.engine import short_lever_joints
+    from workbench.core.kinematics import short_lever_joints
     from engines.smoothing import smooth_observed
 
     sk = test_clip.skeleton

@@ -215,6 +215,26 @@ def test_position_mode_returns_a_motion_with_the_skeletons_bone_lengths(fitted, 
     assert err(clean) < 0.5 * err(noisy)
 
 
+def test_position_mode_keeps_short_levers_at_their_smoothed_observed_angles(fitted, walk):
+    # the hands and finger bases are not aimed from filtered positions a few mm off: they
+    # keep their observed angles through the kalman smoother, as in cae
+    from engines.smoothing import smooth_observed
+    from workbench.core.kinematics import short_lever_joints
+
+    obs, _, _ = _outlier_case(walk, fitted, rate=0.0)
+    short = short_lever_joints(walk.skeleton, 5.0)
+    cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+    kept = with_params(fitted, space="positions").clean(obs).motion.channels[:, cols]
+    everywhere = np.ones((walk.n_frames, cols.size), bool)
+    np.testing.assert_allclose(kept, smooth_observed(obs.motion.channels[:, cols], everywhere), atol=1e-6)
+    aimed = with_params(fitted, space="positions", short_lever_cm=0.0).clean(obs).motion
+
+    def rms(channels):
+        return float(np.sqrt(np.mean(np.square(channels - walk.channels[:, cols]))))
+
+    assert rms(kept) < 0.7 * rms(aimed.channels[:, cols])
+
+
 def test_refuses_another_skeleton_and_mixed_training(fitted, walk, kick):
     with pytest.raises(EngineError, match="skeleton"):
         fitted.clean(Observation(kick))

@@ -122,3 +122,14 @@ def inverse_kinematics(
         idx = [j for j in solved if orders[j] == order]
         angles[:, idx] = nearest_euler(matrix_to_euler(R_local[:, idx], order), ref[:, idx])
     return root_positions, angles
+
+
+def short_lever_joints(skeleton: Skeleton, lever_cm: float) -> np.ndarray:
+    """Indices of the joints with a rotation whose ``skeleton.aimed_descendants`` (the
+    nearest descendants off their own position) all lie within ``lever_cm``."""
+    out = []
+    for j in np.flatnonzero(skeleton.has_rotation):
+        reach = [np.linalg.norm(skeleton.offsets[c]) * skeleton.unit_cm for c, _ in skeleton.aimed_descendants[j]]
+        if reach and max(reach) < lever_cm:
+            out.append(int(j))
+    return np.array(out, int)
