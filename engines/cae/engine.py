@@ -97,7 +97,7 @@ import numpy as np
 
 from workbench.core.channels import hole_length, interpolate_gaps
 from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations, short_lever_joints
-from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
+from workbench.core.motion import Motion, Observation, channel_mask, joint_angle_columns, position_unknown
 from workbench.engine import CleanResult, Engine, EngineError
 
 from ..identity import bridge_gaps, rewrap_angles
@@ -383,7 +383,7 @@ class ConvAutoencoderEngine(Engine):
         short = short_lever_joints(observation.skeleton, self.params.short_lever_cm)
         short = short[observation.observed[:, short].any(axis=0)]
         if self.params.anchor and short.size:
-            cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+            cols = joint_angle_columns(short)
             ref, ref_local = ref.copy(), ref_local.copy()
             ref[:, short] = smooth_observed(bridged[:, cols], channel_mask(observation.observed)[:, cols]).reshape(
                 observation.n_frames, -1, 3)

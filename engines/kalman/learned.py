@@ -57,7 +57,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import unwrap_deg
-from workbench.core.motion import Motion, Observation
+from workbench.core.motion import Motion, Observation, joint_angle_columns
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
 from ..identity import prepare
@@ -137,7 +137,7 @@ class LearnedKalman(Engine):
                 raise EngineError(f"engine 'kalman-learned': the training motions mix frame rates "
                                   f"({motions[0].fps:g} and {m.fps:g} fps)")
         joints = _model_joints(motions[0])
-        cols = (3 + 3 * joints[:, None] + np.arange(3)).ravel()
+        cols = joint_angle_columns(joints)
         G = joints.size
         clips = [unwrap_deg(m.channels[:, cols]).reshape(m.n_frames, G, 3) for m in motions if m.n_frames >= 3]
         if not clips:
@@ -211,7 +211,7 @@ class LearnedKalman(Engine):
         use = obs_j.sum(axis=0) >= 3
         if F >= 3 and use.any():
             g_idx = np.flatnonzero(use)
-            cols = (3 + 3 * self.joints_[g_idx, None] + np.arange(3))          # (g, 3)
+            cols = joint_angle_columns(self.joints_[g_idx]).reshape(-1, 3)     # (g, 3)
             qg, rg = q[cols], r[cols]
             live = qg > 0                                         # not constant in the observation
             if self.params.learned_dynamics:

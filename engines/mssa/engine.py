@@ -14,7 +14,7 @@ import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
 from workbench.core.kinematics import inverse_kinematics, short_lever_joints
-from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.motion import Motion, Observation, angle_columns, channel_mask, joint_angle_columns
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
@@ -265,7 +265,7 @@ class MSSA(Engine):
             short = short_lever_joints(skeleton, self.params.short_lever_cm)
             short = short[observation.observed[:, short].any(axis=0)]
             reference = np.array(X)
-            kept = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+            kept = joint_angle_columns(short)
             reference[:, kept] = smooth_observed(X[:, kept], mask[:, kept])
             root, angles = inverse_kinematics(skeleton, world, reference[:, 3:].reshape(F, -1, 3),
                                               reference_joints=short)

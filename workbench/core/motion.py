@@ -142,6 +142,12 @@ def position_unknown(observed: np.ndarray, parents) -> np.ndarray:
     return unknown
 
 
+def joint_angle_columns(joints) -> np.ndarray:
+    """(3n,) column indices into the channel matrix of the angles of the n ``joints``
+    (indices), three per joint in their order."""
+    return (3 + 3 * np.asarray(joints, int)[:, None] + np.arange(3)).ravel()
+
+
 def angle_columns(skeleton: Skeleton) -> np.ndarray:
     """Column indices into the channel matrix of the scored joint-angle channels: the
     rotation channels of every joint but the root."""

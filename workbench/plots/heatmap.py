@@ -62,7 +62,8 @@ def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: 
     bar.ax.yaxis.set_minor_formatter("")
     bar.set_label(bar_label)
     groups = channel_groups(names, C)
-    bold = {i for i, g in enumerate(groups) if g[3] is not None and g[3] in set(highlight)}
+    chosen = set(highlight)
+    bold = {i for i, g in enumerate(groups) if g[3] in chosen}
     keep = label_rows(len(groups), bold, ax.get_window_extent().height / LABEL_PX)
     ax.set_yticks([(groups[i][1] + groups[i][2]) / 2 for i in keep], [groups[i][0] for i in keep],
                   fontsize="x-small")
