@@ -76,14 +76,40 @@ def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, da
 
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
-    assert main(["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--split", "test",
-                 "--clips", "cmu/run/*", "--seeds", "2", "--json", str(js)]) == 0
+    assert main(["bench", "--engines", "identity,gaussian", "--corrupt", "angular:0.5", "--split", "test",
+                 "--clips", "cmu/run/*", "--seeds", "2", "--per-clip", "rms_angle_deg", "--json", str(js)]) == 0
     out = capsys.readouterr().out
     assert out.splitlines()[0].startswith("| engine | rms_angle_deg | mpjpe_cm")
     doc = json.loads(js.read_text())
     s = doc["summary"]["identity"]
     assert s["rms_angle_deg"] > 0 and s["frames_per_s"] > 0 and "gap_mpjpe_cm" not in s
-    assert len(doc["rows"]) == 2 * len(doc["clips"]) and all(c.startswith("cmu/run/") for c in doc["clips"])
+    assert len(doc["rows"]) == 4 * len(doc["clips"]) and all(c.startswith("cmu/run/") for c in doc["clips"])
+    # the per-clip table: a row per clip with each engine's mean over the two seeds, then the mean row
+    table = out.split("\n\n")[1].splitlines()
+    assert table[0] == "| clip (rms_angle_deg) | frames | identity | gaussian |"
+    assert [line.split(" | ")[0][2:] for line in table[2:-1]] == doc["clips"]
+    for line, clip in zip(table[2:-1], doc["clips"]):
+        cells = line.strip("| ").split(" | ")
+        for spec, cell in zip(("identity", "gaussian"), cells[2:]):
+            seeds = [r["rms_angle_deg"] for r in doc["rows"] if r["clip"] == clip and r["engine"] == spec]
+            assert len(seeds) == 2 and float(cell) == pytest.approx(np.mean(seeds), abs=6e-4)
+    means = [f"{doc['summary'][spec]['rms_angle_deg']:.3f}" for spec in ("identity", "gaussian")]
+    assert table[-1] == "| **mean** | | " + " | ".join(means) + " |"
+
+
+def test_per_clip_marks_a_metric_no_seed_defines():
+    from workbench.evaluate import BenchResult
+
+    result = BenchResult("angular:0.5", [0, 1], ["a", "b"], rows=[
+        {"engine": "x", "clip": "a", "seed": 0, "frames": 10, "gap_mpjpe_cm": 1.0},
+        {"engine": "x", "clip": "a", "seed": 1, "frames": 10, "gap_mpjpe_cm": float("nan")},
+        {"engine": "x", "clip": "b", "seed": 0, "frames": 20},
+    ], summary={"x": {"gap_mpjpe_cm": 1.0}})
+    assert result.per_clip("gap_mpjpe_cm") == {"a": {"x": 1.0}, "b": {"x": pytest.approx(float("nan"), nan_ok=True)}}
+    assert result.per_clip_markdown("gap_mpjpe_cm").splitlines()[2:] == [
+        "| a | 10 | 1.000 |", "| b | 20 | – |", "| **mean** | | 1.000 |"]
+    with pytest.raises(ValueError, match="unknown metric"):
+        result.per_clip("speed")
 
 
 def test_module_entry_point_runs():

@@ -160,6 +160,9 @@ def cmd_bench(args) -> int:
             print("  " + msg, file=sys.stderr)
     result = run_benchmark(specs, args.corrupt, clips, seeds, progress=progress)
     print(result.markdown())
+    if args.per_clip:
+        print()
+        print(result.per_clip_markdown(args.per_clip))
     if args.json:
         from .io.atomic import atomic_write_text
 
@@ -262,6 +265,8 @@ def cmd_screenshots(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .metrics import METRICS
+
     p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
@@ -300,6 +305,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
     sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
     sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
+    sp.add_argument("--per-clip", choices=METRICS, metavar="METRIC",
+                    help=f"also a table of METRIC per clip, mean over the seeds ({', '.join(METRICS)})")
     sp.add_argument("--json", metavar="PATH")
     sp.add_argument("-v", "--verbose", action="store_true")
     sp.set_defaults(func=cmd_bench)

@@ -19,8 +19,7 @@ from . import metrics, registry
 from .core.motion import Case, Motion, Observation
 from .engine import Engine
 from .corruption import make_case
-
-METRICS = ("rms_angle_deg", "mpjpe_cm", "gap_mpjpe_cm", "root_cm", "jitter_cm_s3")
+from .metrics import METRICS
 
 
 @dataclass
@@ -47,6 +46,30 @@ class BenchResult:
                 v = s.get(c, float("nan"))
                 cells.append(f"{v:,.0f}" if c == "frames_per_s" else f"{v:.3g}" if c == "jitter_cm_s3" else f"{v:.3f}")
             lines.append(f"| {spec} | " + " | ".join(cells) + " |")
+        return "\n".join(lines)
+
+    def per_clip(self, metric: str) -> dict[str, dict[str, float]]:
+        """``metric``'s mean over the seeds, by clip (in benchmark order), then by engine;
+        NaN where no seed defines it (e.g. ``gap_mpjpe_cm`` without missing data)."""
+        if metric not in METRICS:
+            raise ValueError(f"unknown metric {metric!r}; one of {', '.join(METRICS)}")
+        values: dict[tuple[str, str], list[float]] = {}
+        for r in self.rows:
+            if not math.isnan(r.get(metric, math.nan)):
+                values.setdefault((r["clip"], r["engine"]), []).append(r[metric])
+        return {clip: {spec: float(np.mean(values[clip, spec])) if (clip, spec) in values else math.nan
+                       for spec in self.summary} for clip in self.clips}
+
+    def per_clip_markdown(self, metric: str) -> str:
+        """A table of ``metric`` with a row per clip (its frame count, then every engine's
+        mean over the seeds) and a last row with the summary's mean over all rows."""
+        frames = {r["clip"]: r["frames"] for r in self.rows}
+        specs = list(self.summary)
+        cell = lambda v: "–" if math.isnan(v) else f"{v:.3g}" if metric == "jitter_cm_s3" else f"{v:.3f}"
+        lines = [f"| clip ({metric}) | frames | " + " | ".join(specs) + " |", "|" + "---|" * (len(specs) + 2)]
+        for clip, by_engine in self.per_clip(metric).items():
+            lines.append(f"| {clip} | {frames.get(clip, 0)} | " + " | ".join(cell(by_engine[s]) for s in specs) + " |")
+        lines.append("| **mean** | | " + " | ".join(cell(self.summary[s].get(metric, math.nan)) for s in specs) + " |")
         return "\n".join(lines)
 
 

@@ -105,6 +105,10 @@ def jitter_cm_s3(motion: Motion) -> float:
     return float(np.mean(np.linalg.norm(jerk, axis=2)))
 
 
+#: the names :func:`score` returns, in the order of the benchmark's tables
+METRICS = ("rms_angle_deg", "mpjpe_cm", "gap_mpjpe_cm", "root_cm", "jitter_cm_s3")
+
+
 def score(truth: Motion, estimate: Motion, observed: np.ndarray | None = None) -> dict[str, float]:
     """The headline numbers of one result: rms_angle_deg, mpjpe_cm, gap_mpjpe_cm (only
     when ``observed`` has missing entries), root_cm and jitter_cm_s3."""
