@@ -185,13 +185,36 @@ def test_an_engine_error_shows_in_the_window_not_on_the_console(window, qtbot, c
     assert "Traceback" not in capfd.readouterr().err
 
 
-def test_a_take_without_ground_truth_says_so(window, qtbot, clean_take):
+def test_a_take_without_ground_truth_says_so_and_plots_how_far_each_engine_moved_it(window, qtbot, clean_take):
+    from workbench.metrics import joint_position_error_cm
+
+    window.session.set_specs(["identity", "gaussian"], "identity")
     window.session.set_take(clean_take)
     settle(qtbot, window)
     panes = window.scene.scene.panes
     assert panes[-1].points is None and "no ground truth" in panes[-1].note
-    texts = [t.get_text() for t in window.plots.canvases[0].figure.axes[0].texts]
-    assert any("no ground truth" in t for t in texts)
+    window.session.set_compare(True)  # a line per engine
+    settle(qtbot, window)
+    ax = window.plots.canvases[0].figure.axes[0]
+    assert "no ground truth" in ax.get_title(loc="left") and "moved" in ax.get_ylabel()
+    lines = {line.get_label(): np.asarray(line.get_ydata()) for line in ax.get_lines()}
+    assert "noisy (RMS)" not in lines
+    np.testing.assert_allclose(lines["identity (RMS)"], 0.0, atol=1e-9)  # identity keeps the recording
+    smoothed = window.session.runs["gaussian"].track.motion
+    moved = np.sqrt(np.mean(joint_position_error_cm(clean_take.observation.motion, smoothed) ** 2, axis=1))
+    assert moved.max() > 0.01
+    np.testing.assert_allclose(lines["gaussian (RMS)"], moved)
+
+
+def test_a_take_without_ground_truth_and_no_run_yet_says_what_the_plot_will_show(clean_take):
+    from matplotlib.figure import Figure
+
+    from workbench.app.figures import draw_errors
+
+    fig = Figure()
+    draw_errors(fig, clean_take, [], ())
+    (note,) = fig.axes[0].texts
+    assert "no ground truth" in note.get_text() and "how far it moved the recording" in note.get_text()
 
 
 def test_opening_a_bad_take_reports_it(window, qtbot):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.motion import channel_mask, position_unknown
+from ..metrics import joint_position_error_cm
 from ..plots import plot_bone_lengths, plot_data_weights, plot_errors, plot_filter_widths, plot_note
 from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
 from ..plots.timeline import Series
@@ -19,33 +20,58 @@ WAITING = "waiting for the engine..."
 
 
 def error_series(take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list[Series]:
-    """Lines of the error plot: the RMS over joints of the noisy take and of each run,
-    then each selected joint's error per run (joint colours, one line style per run)
-    with the noisy error of that joint faint behind it."""
+    """Lines of the error plot: the RMS over joints of the noisy take's error and of each
+    run's, then each selected joint's error per run (joint colours, one line style per
+    run) with the noisy error of that joint faint behind it. A take without a truth has
+    no errors: its lines are how far each run moved the recording (gaps bridged),
+    root-aligned (:func:`recording_change_cm`), without the noisy lines."""
     names = take.motion.skeleton.names
-    series = [Series("noisy (RMS)", take.noisy.rms_cm, NOISY, 1.2)]
-    series += [Series(f"{r.spec} (RMS)", r.track.rms_cm, engine_colour(i), 2.0) for i, r in enumerate(runs)]
+    if take.truth is None:
+        noisy, per_run = None, [recording_change_cm(take, r) for r in runs]
+    else:
+        noisy, per_run = take.noisy.errors_cm, [r.track.errors_cm for r in runs]
+    series = [] if noisy is None else [Series("noisy (RMS)", rms_over_joints(noisy), NOISY, 1.2)]
+    series += [Series(f"{r.spec} (RMS)", rms_over_joints(e), engine_colour(i), 2.0)
+               for i, (r, e) in enumerate(zip(runs, per_run))]
     for k, j in enumerate(selected):
         colour = JOINTS[k % len(JOINTS)]
-        series.append(Series(f"{names[j]} noisy", take.noisy.errors_cm[:, j], colour, 0.8, alpha=0.3))
-        for i, r in enumerate(runs):
+        if noisy is not None:
+            series.append(Series(f"{names[j]} noisy", noisy[:, j], colour, 0.8, alpha=0.3))
+        for i, (r, e) in enumerate(zip(runs, per_run)):
             style = ENGINE_STYLES[i % len(ENGINE_STYLES)]
-            series.append(Series(f"{names[j]} · {r.spec}", r.track.errors_cm[:, j], colour, 1.5, style))
+            series.append(Series(f"{names[j]} · {r.spec}", e[:, j], colour, 1.5, style))
     return series
+
+
+def rms_over_joints(errors_cm: np.ndarray) -> np.ndarray:
+    """(F,) root-mean-square over the joints of (F, J) errors."""
+    return np.sqrt(np.mean(errors_cm**2, axis=1))
+
+
+def recording_change_cm(take: Take, run: EngineRun) -> np.ndarray:
+    """(F, J) how far the run moved each joint from the recording (its gaps bridged), in
+    cm, root-aligned: on a take without a truth, where and how much an engine changed it."""
+    return joint_position_error_cm(take.noisy.motion, run.track.motion)
 
 
 def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list:
     """Error over time above a strip of the missing joints (grey, joints x time); the
-    selected joints' gaps are shaded in the error plot. Returns the time axes."""
+    selected joints' gaps are shaded in the error plot. Without a truth the plot shows
+    how far each engine moved the recording instead. Returns the time axes."""
     ax, strip = fig.subplots(2, 1, sharex=True, height_ratios=[5, 1])
     missing = take.missing
-    if take.truth is None:
-        plot_note(ax, "no ground truth: errors need a clean take corrupted here")
+    if take.truth is None and not runs:
+        plot_note(ax, "no ground truth: errors need a clean take corrupted here;\n"
+                      "once an engine has run, how far it moved the recording")
         ax.set_axis_on()
         ax.set_yticks([])
     else:
         gaps = missing[:, list(selected)].any(axis=1) if selected else None
-        plot_errors(ax, error_series(take, runs, selected), take.fps, gaps)
+        if take.truth is None:
+            plot_errors(ax, error_series(take, runs, selected), take.fps, gaps,
+                        "no ground truth: how far each engine moved the recording", "moved (cm)")
+        else:
+            plot_errors(ax, error_series(take, runs, selected), take.fps, gaps)
         ax.set_xlabel("")
     F, J = missing.shape
     strip.imshow(missing.T, aspect="auto", interpolation="nearest", cmap="Greys", vmin=0, vmax=1.6,

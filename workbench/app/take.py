@@ -95,11 +95,6 @@ class Track:
         errors = None if truth is None else joint_position_error_cm(truth, motion)
         return cls(motion, skeleton_points(motion), errors)
 
-    @property
-    def rms_cm(self) -> np.ndarray:
-        """(F,) root-mean-square joint error per frame, cm."""
-        return np.sqrt(np.mean(self.errors_cm**2, axis=1))
-
 
 @dataclass(frozen=True)
 class Take:

@@ -40,7 +40,8 @@ def shade_gaps(ax, missing: np.ndarray, fps: float, label: str = "gaps") -> None
         ax.axvspan(a / fps, b / fps, color=GAP, alpha=0.28, lw=0, label=label if k == 0 else None)
 
 
-def plot_errors(ax, series: list[Series], fps: float, missing: np.ndarray | None = None, title: str = "") -> None:
+def plot_errors(ax, series: list[Series], fps: float, missing: np.ndarray | None = None, title: str = "",
+                ylabel: str = "joint error (cm)") -> None:
     """Joint error over time (cm), one line per series, gap spans shaded where
     ``missing`` (F,) is True."""
     n = len(series[0].values)
@@ -52,7 +53,7 @@ def plot_errors(ax, series: list[Series], fps: float, missing: np.ndarray | None
     ax.set_xlim(0, max(t[-1], 1 / fps))
     ax.set_ylim(0, None)
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("joint error (cm)")
+    ax.set_ylabel(ylabel)
     ax.grid(True, color="#e3e6ea", lw=0.8)
     ax.set_axisbelow(True)
     if title:
