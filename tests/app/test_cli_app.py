@@ -69,7 +69,8 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk):
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
     names = sorted(p.name for p in (tmp_path / "shots").iterdir())
-    assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "outliers.png", "report.png"]
+    assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "outliers.png", "recorded.png",
+                     "report.png"]
     assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
     assert "Traceback" not in run.stderr
 

@@ -88,7 +88,8 @@ def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption
     """The window in its main states, and the report figure, as PNG files in ``out_dir``:
     default, compare, joint (a selected joint), heatmap (the filter-width tab, of the
     engine whose widths vary most), outliers (the outlier-weight tab of
-    :data:`OUTLIER_ENGINE` on :data:`OUTLIER_CORRUPTION`) and report. ``specs``: the
+    :data:`OUTLIER_ENGINE` on :data:`OUTLIER_CORRUPTION`), recorded (the take as
+    recorded, no ground truth, every engine compared) and report. ``specs``: the
     engines (default: :func:`default_engines`)."""
     from .report import write_report
 
@@ -127,6 +128,13 @@ def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption
         window.plots.setCurrentIndex(2)
         shoot("outliers")
     window.plots.setCurrentIndex(0)
+    s.set_specs(specs)
+    s.open(source, "none", 0)  # a real take: how far each engine moves it
+    s.select_joint(None)
+    s.set_compare(True)
+    settle(window)
+    s.set_frame(frame)
+    shoot("recorded")
     paths.append(write_report(out / "report.png", source, corruption, 0, specs, frame=frame))
     window.close()
     return paths
