@@ -22,6 +22,16 @@ from .corruption import make_case
 from .metrics import METRICS
 
 
+def format_value(metric: str, value: float) -> str:
+    """A table cell: speeds whole, jitter in 3 significant digits, the rest to 3
+    decimals; "–" for NaN (undefined)."""
+    if math.isnan(value):
+        return "–"
+    if metric == "frames_per_s":
+        return f"{value:,.0f}"
+    return f"{value:.3g}" if metric == "jitter_cm_s3" else f"{value:.3f}"
+
+
 @dataclass
 class BenchResult:
     """Per-row results and per-engine summaries, keyed by each spec exactly as given."""
@@ -41,10 +51,7 @@ class BenchResult:
         head = "| engine | " + " | ".join(cols) + " |"
         lines = [head, "|" + "---|" * (len(cols) + 1)]
         for spec, s in self.summary.items():
-            cells = []
-            for c in cols:
-                v = s.get(c, float("nan"))
-                cells.append(f"{v:,.0f}" if c == "frames_per_s" else f"{v:.3g}" if c == "jitter_cm_s3" else f"{v:.3f}")
+            cells = [format_value(c, s.get(c, math.nan)) for c in cols]
             lines.append(f"| {spec} | " + " | ".join(cells) + " |")
         return "\n".join(lines)
 
@@ -65,11 +72,11 @@ class BenchResult:
         mean over the seeds) and a last row with the summary's mean over all rows."""
         frames = {r["clip"]: r["frames"] for r in self.rows}
         specs = list(self.summary)
-        cell = lambda v: "–" if math.isnan(v) else f"{v:.3g}" if metric == "jitter_cm_s3" else f"{v:.3f}"
         lines = [f"| clip ({metric}) | frames | " + " | ".join(specs) + " |", "|" + "---|" * (len(specs) + 2)]
+        cells = lambda values: " | ".join(format_value(metric, v) for v in values)
         for clip, by_engine in self.per_clip(metric).items():
-            lines.append(f"| {clip} | {frames.get(clip, 0)} | " + " | ".join(cell(by_engine[s]) for s in specs) + " |")
-        lines.append("| **mean** | | " + " | ".join(cell(self.summary[s].get(metric, math.nan)) for s in specs) + " |")
+            lines.append(f"| {clip} | {frames.get(clip, 0)} | {cells(by_engine[s] for s in specs)} |")
+        lines.append(f"| **mean** | | {cells(self.summary[s].get(metric, math.nan) for s in specs)} |")
         return "\n".join(lines)
 
 
