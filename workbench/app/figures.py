@@ -67,7 +67,8 @@ def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...
         ax.set_yticks([])
     else:
         gaps = missing[:, list(selected)].any(axis=1) if selected else None
-        labels = () if take.truth is not None else ("no ground truth: how far each engine moved the recording", "moved (cm)")
+        labels = (() if take.truth is not None
+                  else ("no ground truth: how far each engine moved the recording", "moved (cm)"))
         plot_errors(ax, error_series(take, runs, selected), take.fps, gaps, *labels)
         ax.set_xlabel("")
     F, J = missing.shape
