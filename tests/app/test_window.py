@@ -206,6 +206,20 @@ def test_a_take_without_ground_truth_says_so_and_plots_how_far_each_engine_moved
     np.testing.assert_allclose(lines["gaussian (RMS)"], moved)
 
 
+def test_without_ground_truth_a_selected_joint_gets_a_line_per_engine_and_no_noisy_line(clean_take):
+    from workbench.app.figures import error_series
+    from workbench.app.take import run_engine
+    from workbench.metrics import joint_position_error_cm
+
+    run = run_engine("gaussian", clean_take)
+    j = head(clean_take)
+    series = error_series(clean_take, [run], (j,))
+    assert [s.label for s in series] == ["gaussian (RMS)", "Head · gaussian"]
+    moved = joint_position_error_cm(clean_take.observation.motion, run.track.motion)[:, j]
+    assert moved.max() > 0.01
+    np.testing.assert_allclose(series[1].values, moved)
+
+
 def test_a_take_without_ground_truth_and_no_run_yet_says_what_the_plot_will_show(clean_take):
     from matplotlib.figure import Figure
 
