@@ -245,3 +245,36 @@ def test_the_3d_views_are_an_interactor_with_a_display_and_images_without(window
     offscreen = QGuiApplication.platformName() == "offscreen"
     assert isinstance(window.scene.surface, QLabel) == offscreen
     assert window.scene.interactive == (not offscreen)
+
+
+def test_save_writes_the_highlighted_engines_cleaned_take_as_bvh(window, qtbot, tmp_path, monkeypatch):
+    from PySide6.QtWidgets import QFileDialog
+
+    from workbench.io import read_bvh
+
+    s, panel = window.session, window.controls.engines
+    s.set_current("test-widths")
+    assert panel.save.isEnabled()
+    out = tmp_path / "cleaned.bvh"
+    asked = []
+    monkeypatch.setattr(QFileDialog, "getSaveFileName",
+                        lambda *args: (asked.append(args[2]), (str(out), ""))[1])
+    panel.save.click()
+    assert asked == ["35_31_120_frames_test-widths.bvh"]  # the take's name and the engine's, safe characters
+    saved, cleaned = read_bvh(out), s.runs["test-widths"].track.motion
+    assert saved.n_frames == cleaned.n_frames and saved.skeleton.names == cleaned.skeleton.names
+    np.testing.assert_allclose(saved.channels, cleaned.channels, atol=1e-4)
+    assert f"saved test-widths's cleaned take to {out}" in window.controls.log.item(0).text()
+
+
+def test_save_says_why_it_cannot_and_leaves_no_file(window, qtbot, tmp_path):
+    s = window.session
+    (tmp_path / "a-file").write_text("not a folder")
+    target = tmp_path / "a-file" / "x.bvh"
+    assert not s.save_current(str(target))
+    assert not target.exists() and "cannot save" in window.controls.log.item(0).text()
+    s.set_specs(["test-boom"], "test-boom")
+    settle(qtbot, window)
+    assert not window.controls.engines.save.isEnabled()
+    assert not s.save_current(str(tmp_path / "y.bvh"))
+    assert not (tmp_path / "y.bvh").exists() and "nothing to save" in window.controls.log.item(0).text()

@@ -6,6 +6,8 @@ compare mode and follow-root, and the message log. Every control calls a Session
 from __future__ import annotations
 
 import dataclasses
+import re
+from pathlib import Path
 
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
@@ -102,18 +104,21 @@ class EnginePanel(QGroupBox):
         self.params = QFormLayout()
         self.params_box = QGroupBox("Parameters")
         self.params_box.setLayout(self.params)
+        self.save = QPushButton("Save cleaned BVH…")
+        self.save.setToolTip("write the take as cleaned by the highlighted engine")
+        self.save.clicked.connect(self._save)
         self.compare = QCheckBox("Compare checked engines side by side")
         self.compare.toggled.connect(session.set_compare)
         self.follow = QCheckBox("Camera follows the root")
         self.follow.setChecked(session.follow)
         self.follow.toggled.connect(session.set_follow)
         layout = QVBoxLayout(self)
-        for w in (self.list, self.add, self.params_box, self.compare, self.follow):
+        for w in (self.list, self.add, self.params_box, self.save, self.compare, self.follow):
             layout.addWidget(w)
         self.edits: list[tuple[str, dict[str, QLineEdit]]] = []
         self._params_for: str | None = None
-        session.runsChanged.connect(self.refresh)
-        session.viewChanged.connect(self.refresh)
+        for signal in (session.takeChanged, session.runsChanged, session.viewChanged):
+            signal.connect(self.refresh)
         self.refresh()
 
     def _specs(self) -> list[str]:
@@ -143,6 +148,7 @@ class EnginePanel(QGroupBox):
             if spec == s.current:
                 self.list.setCurrentItem(item)
         self.list.blockSignals(False)
+        self.save.setEnabled(s.current_run() is not None)
         self.compare.setChecked(s.compare)
         self._show_params(s.current)
 
@@ -158,6 +164,14 @@ class EnginePanel(QGroupBox):
             spec = item.data(SPEC_ROLE)
             self.session.set_current(spec)
             self._show_params(spec)
+
+    def _save(self) -> None:
+        s = self.session
+        stem = Path(s.take.source).stem if s.take else "take"
+        name = re.sub(r"[^A-Za-z0-9.-]+", "_", f"{stem}_{s.current}").strip("_") + ".bvh"
+        path, _ = QFileDialog.getSaveFileName(self, "Save the cleaned take", name, "BVH files (*.bvh)")
+        if path:
+            s.save_current(path)
 
     def _add(self) -> None:
         spec = self.add.text().strip()

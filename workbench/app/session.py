@@ -182,6 +182,29 @@ class Session(QObject):
         """The shown engines' finished runs."""
         return [r for s in self.shown if isinstance(r := self.runs.get(s), EngineRun)]
 
+    def current_run(self) -> EngineRun | None:
+        """The finished run of the engine shown as "cleaned", if there is one."""
+        run = self.runs.get(self.current)
+        return run if isinstance(run, EngineRun) else None
+
+    def save_current(self, path: str) -> bool:
+        """Write the current engine's cleaned take to ``path`` as BVH (atomically: a
+        failed write leaves no file); says what happened in a ``message``. Returns
+        whether it was written."""
+        from ..io import write_bvh
+
+        run = self.current_run()
+        if run is None:
+            self.message.emit(f"nothing to save: {self.current or 'no engine'} has no result yet")
+            return False
+        try:
+            write_bvh(path, run.track.motion)
+        except (OSError, ValueError) as err:
+            self.message.emit(f"cannot save {path}: {describe(err)}")
+            return False
+        self.message.emit(f"saved {run.spec}'s cleaned take to {path}")
+        return True
+
     def set_current(self, spec: str) -> None:
         if spec in self.specs and spec != self.current:
             self.current = spec
