@@ -259,7 +259,7 @@ def test_save_writes_the_highlighted_engines_cleaned_take_as_bvh(window, qtbot, 
     asked = []
     monkeypatch.setattr(QFileDialog, "getSaveFileName",
                         lambda *args: (asked.append(args[2]), (str(out), ""))[1])
-    panel.save.click()
+    qtbot.keyClick(window.focusWidget(), Qt.Key_S, Qt.ControlModifier)
     assert asked == ["35_31_120_frames_test-widths.bvh"]  # the take's name and the engine's, safe characters
     saved, cleaned = read_bvh(out), s.runs["test-widths"].track.motion
     assert saved.n_frames == cleaned.n_frames and saved.skeleton.names == cleaned.skeleton.names

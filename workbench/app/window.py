@@ -1,6 +1,7 @@
 """The main window: controls on the left; the 3D panes, the transport bar (with the
 joint-error colour scale) and the plot tabs on the right; messages and worker progress
-in the status bar. Keys: left/right step a frame, space plays or pauses.
+in the status bar. Keys: left/right step a frame, space plays or pauses, Ctrl+S saves
+the cleaned take.
 """
 
 from __future__ import annotations
@@ -120,6 +121,7 @@ class MainWindow(QMainWindow):
         for key, action in ((Qt.Key_Left, lambda: s.step(-1)), (Qt.Key_Right, lambda: s.step(1)),
                             (Qt.Key_Space, s.toggle_playing)):
             QShortcut(QKeySequence(key), self, action)
+        QShortcut(QKeySequence.Save, self, self.controls.engines.save.click)  # Ctrl+S
         self.scene.setFocus()  # not a text field, which would take the keys for itself
 
     def closeEvent(self, event) -> None:
