@@ -30,8 +30,8 @@ def unwrap_deg(X: np.ndarray, observed: np.ndarray | None = None, *, robust: boo
     follows every sample, so one outlier near 180 degrees away from its neighbours can
     leave a whole turn behind it for the rest of the take, which a smoother then blurs
     into up to 180 degrees of error around it; the robust rule keeps the take on its
-    branch. Observations are unwrapped robustly; clean takes (training data, the
-    corruption models' channel statistics) with ``np.unwrap``. Columns whose consecutive
+    branch. Observations and the corruption models' channel statistics are unwrapped
+    robustly; clean training takes with ``np.unwrap``. Columns whose consecutive
     samples all differ by less than 180 degrees come back as they are. Missing samples
     stay missing (NaN); the others are unwrapped as if each gap held the last observed
     value."""

@@ -96,9 +96,13 @@ class Work:
 
     @cached_property
     def angle_std(self) -> np.ndarray:
-        """Std (degrees) of each joint-angle channel of the clean clip, on unwrapped
-        angles; exactly 0 for (numerically) constant channels."""
-        X = unwrap_deg(self.clean.channels[:, self.angle_cols])
+        """Std (degrees) of each joint-angle channel of the clean clip, on angles
+        unwrapped robustly (:func:`~workbench.core.channels.unwrap_deg`): a capture
+        glitch that flips a joint by half a turn and back must not leave a whole turn in
+        the statistics (test run 35_26's RightFingerBase: 179.5 degrees with ``np.unwrap``
+        against 18.9), which would scale its noise tenfold; exactly 0 for (numerically)
+        constant channels."""
+        X = unwrap_deg(self.clean.channels[:, self.angle_cols], robust=True)
         std = X.std(axis=0)
         std[std <= ZERO_STD_DEG] = 0.0
         return std
