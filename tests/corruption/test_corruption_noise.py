@@ -48,6 +48,22 @@ def test_angular_std_per_channel(clip, k):
     assert abs(np.mean(np.abs(z) > 2) - 0.0455) < 0.005
 
 
+def test_a_half_turn_capture_glitch_does_not_scale_a_channels_noise(long_walk):
+    """A joint flipped by half a turn and back for a few frames (as in CMU 35_26's
+    RightFingerBase) leaves np.unwrap a whole turn behind; the noise must follow the
+    channel's real spread, not that turn."""
+    cols = angle_columns(long_walk.skeleton)
+    c = cols[10]
+    motion = long_walk.slice(0, 400)
+    channels = motion.channels.copy()
+    channels[200:203, c] = [120.0, -178.0, -57.0]
+    glitched = motion.with_channels(channels)
+    assert unwrap_deg(channels[:, [c]]).std() > 100  # the whole turn a plain unwrap leaves
+    spread = unwrap_deg(channels[:, [c]], robust=True).std()
+    d = _noise(glitched, "angular:0.5")[:, c]
+    assert spread < 20 and abs(d.std() / (0.5 * spread) - 1) < 0.15
+
+
 def test_uniform_range_and_std(clip):
     motion, cols, std = clip
     k = 0.5
