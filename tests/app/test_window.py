@@ -188,11 +188,21 @@ def test_an_engine_error_shows_in_the_window_not_on_the_console(window, qtbot, c
 def test_a_take_without_ground_truth_says_so_and_plots_how_far_each_engine_moved_it(window, qtbot, clean_take):
     from workbench.metrics import joint_position_error_cm
 
-    window.session.set_specs(["identity", "gaussian"], "identity")
+    from workbench.plots.style import MOVED_LABEL
+    from workbench.app.window import ErrorScale
+
+    window.session.set_specs(["identity", "gaussian"], "gaussian")
     window.session.set_take(clean_take)
     settle(qtbot, window)
     panes = window.scene.scene.panes
     assert panes[-1].points is None and "no ground truth" in panes[-1].note
+    # the cleaned joints are coloured by how far the engine moved them, on the scale so labelled
+    (scale,) = window.transport.findChildren(ErrorScale)
+    assert scale.figure.axes[0].get_xlabel() == MOVED_LABEL
+    j = head(clean_take)
+    moved_head = joint_position_error_cm(clean_take.observation.motion, window.session.runs["gaussian"].track.motion)
+    assert_colour(panes_image(window), joint_xy(window, 1, j),
+                  error_colour(moved_head[FRAME, j], clean_take.error_scale_cm()), what="cleaned Head")
     window.session.set_compare(True)  # a line per engine
     settle(qtbot, window)
     ax = window.plots.canvases[0].figure.axes[0]

@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.motion import channel_mask, position_unknown
-from ..metrics import joint_position_error_cm
 from ..plots import plot_bone_lengths, plot_data_weights, plot_errors, plot_filter_widths, plot_note
 from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
 from ..plots.timeline import Series
@@ -22,14 +21,11 @@ WAITING = "waiting for the engine..."
 def error_series(take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list[Series]:
     """Lines of the error plot: the RMS over joints of the noisy take's error and of each
     run's, then each selected joint's error per run (joint colours, one line style per
-    run) with the noisy error of that joint faint behind it. A take without a truth has
-    no errors: its lines are how far each run moved the recording (gaps bridged),
-    root-aligned (:func:`recording_change_cm`), without the noisy lines."""
+    run) with the noisy error of that joint faint behind it. On a take without a truth a
+    run's errors are how far it moved the recording (:class:`.take.Track`), and there are
+    no noisy lines."""
     names = take.motion.skeleton.names
-    if take.truth is None:
-        noisy, per_run = None, [recording_change_cm(take, r) for r in runs]
-    else:
-        noisy, per_run = take.noisy.errors_cm, [r.track.errors_cm for r in runs]
+    noisy, per_run = take.noisy.errors_cm, [r.track.errors_cm for r in runs]
     series = [] if noisy is None else [Series("noisy (RMS)", rms_over_joints(noisy), NOISY, 1.2)]
     series += [Series(f"{r.spec} (RMS)", rms_over_joints(e), engine_colour(i), 2.0)
                for i, (r, e) in enumerate(zip(runs, per_run))]
@@ -48,12 +44,6 @@ def rms_over_joints(errors_cm: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(errors_cm**2, axis=1))
 
 
-def recording_change_cm(take: Take, run: EngineRun) -> np.ndarray:
-    """(F, J) how far the run moved each joint from the recording (its gaps bridged), in
-    cm, root-aligned: on a take without a truth, where and how much an engine changed it."""
-    return joint_position_error_cm(take.noisy.motion, run.track.motion)
-
-
 def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> list:
     """Error over time above a strip of the missing joints (grey, joints x time); the
     selected joints' gaps are shaded in the error plot. Without a truth the plot shows
@@ -68,7 +58,7 @@ def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...
     else:
         gaps = missing[:, list(selected)].any(axis=1) if selected else None
         labels = (() if take.truth is not None
-                  else ("no ground truth: how far each engine moved the recording", "moved (cm)"))
+                  else ("no ground truth: how far each engine moved the recording", take.error_label))
         plot_errors(ax, error_series(take, runs, selected), take.fps, gaps, *labels)
         ax.set_xlabel("")
     F, J = missing.shape

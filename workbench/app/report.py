@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..plots import TimeCursor
-from ..plots.style import ERROR_LABEL, error_mappable
+from ..plots.style import error_mappable
 from .figures import draw_bone_lengths, draw_data_weights, draw_errors, draw_filter_widths
 from .take import EngineRun, Take, open_take, run_engine, scene_panes
 
@@ -65,7 +65,7 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
     ax.imshow(image, interpolation="nearest")
     ax.set_axis_off()
     views.colorbar(error_mappable(take.error_scale_cm()), ax=ax, location="right", shrink=0.6, pad=0.005,
-                   aspect=15, label=ERROR_LABEL)
+                   aspect=15, label=take.error_label)
     if take.truth is not None and runs:
         ax.set_title(scores_text(take, runs), fontsize="medium", loc="left")
     axes = draw_errors(errors, take, runs, selected)

@@ -82,17 +82,19 @@ def sidecar_mask(source: str, motion: Motion) -> np.ndarray | None:
 @dataclass(frozen=True)
 class Track:
     """One skeleton to draw and score: its motion, points (F, J + E, 3) in file units and
-    joint errors (F, J) in cm against the truth (None without a truth)."""
+    joint errors (F, J) in cm, root-aligned, against a reference: the truth, or on a take
+    without one the recording, so that they say how far cleaning moved each joint (None
+    without a reference)."""
 
     motion: Motion
     points: np.ndarray
     errors_cm: np.ndarray | None
 
     @classmethod
-    def of(cls, motion: Motion, truth: Motion | None) -> Track:
+    def of(cls, motion: Motion, reference: Motion | None) -> Track:
         from ..metrics import joint_position_error_cm
 
-        errors = None if truth is None else joint_position_error_cm(truth, motion)
+        errors = None if reference is None else joint_position_error_cm(reference, motion)
         return cls(motion, skeleton_points(motion), errors)
 
 
@@ -130,6 +132,14 @@ class Take:
     def root(self) -> np.ndarray:
         """(F, 3) the root trajectory the camera follows (truth's when known)."""
         return (self.truth_track or self.noisy).points[:, 0]
+
+    @property
+    def error_label(self) -> str:
+        """What the joint colours and the error plot measure: error against the truth,
+        or how far an engine moved the recording when there is no truth."""
+        from ..plots.style import ERROR_LABEL, MOVED_LABEL
+
+        return ERROR_LABEL if self.truth is not None else MOVED_LABEL
 
     def error_scale_cm(self) -> tuple[float, float]:
         """(0, hi): the joint-error colour scale, hi the noisy errors' 95th percentile
@@ -197,7 +207,8 @@ def run_engine(spec: str, take: Take) -> EngineRun:
     engine = registry.create(spec)
     result = engine.clean(take.observation)
     seconds = time.perf_counter() - t0
-    return EngineRun(spec, Track.of(result.motion, take.truth), dict(result.diagnostics), seconds)
+    reference = take.truth if take.truth is not None else take.noisy.motion  # else: how far it moved
+    return EngineRun(spec, Track.of(result.motion, reference), dict(result.diagnostics), seconds)
 
 
 def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[int]:

@@ -13,7 +13,7 @@ from PySide6.QtGui import QKeySequence, QShortcut
 from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QMainWindow, QProgressBar, QPushButton, QSlider,
                                QSplitter, QVBoxLayout, QWidget)
 
-from ..plots.style import ERROR_LABEL, error_mappable
+from ..plots.style import error_mappable
 from .controls import ControlPanel
 from .plot_view import PlotTabs
 from .scene_view import SceneView
@@ -38,7 +38,7 @@ class ErrorScale(FigureCanvasQTAgg):
         cbar = fig.colorbar(error_mappable(self.session.take.error_scale_cm()), cax=fig.subplots(),
                             orientation="horizontal")
         cbar.ax.tick_params(labelsize=7, length=2, pad=1)
-        cbar.set_label(ERROR_LABEL, fontsize=7, labelpad=1)
+        cbar.set_label(self.session.take.error_label, fontsize=7, labelpad=1)
         self.draw_idle()
 
 

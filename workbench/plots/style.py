@@ -30,6 +30,8 @@ def error_cmap():
 
 
 ERROR_LABEL = "joint error (cm)"
+#: the same scale on a take without a truth: how far cleaning moved each joint
+MOVED_LABEL = "moved from the recording (cm)"
 
 
 def error_mappable(clim_cm: tuple[float, float]):
