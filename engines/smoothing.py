@@ -36,6 +36,7 @@ import scipy.fft as sfft
 from scipy.linalg import solveh_banded
 
 from workbench.core.channels import interpolate_gaps
+from workbench.core.motion import channel_mask, joint_angle_columns
 
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10
@@ -215,3 +216,13 @@ def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed
     ends)."""
     return interpolate_gaps(smooth_and_fill(Y, observed), observed)
+
+
+def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """A copy of the channel matrix ``channels`` (F, 3 + 3J, gaps bridged) with the angles
+    of ``joints`` smoothed by :func:`smooth_observed` where the joints are ``observed``
+    (F, J) and bridged linearly across their holes."""
+    out = np.array(channels, float)
+    cols = joint_angle_columns(joints)
+    out[:, cols] = smooth_observed(out[:, cols], channel_mask(observed)[:, cols])
+    return out

@@ -14,12 +14,12 @@ import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
 from workbench.core.kinematics import inverse_kinematics, short_lever_joints
-from workbench.core.motion import Motion, Observation, angle_columns, channel_mask, joint_angle_columns
+from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
 from ..identity import bridge_gaps
-from ..smoothing import measurement_variance, smooth_observed, smoothing_ratio
+from ..smoothing import measurement_variance, smooth_joint_angles, smooth_observed, smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -262,11 +262,8 @@ class MSSA(Engine):
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
             world = out.reshape(F, -1, 3) + root_joint[:, None]
-            short = short_lever_joints(skeleton, self.params.short_lever_cm)
-            short = short[observation.observed[:, short].any(axis=0)]
-            reference = np.array(X)
-            kept = joint_angle_columns(short)
-            reference[:, kept] = smooth_observed(X[:, kept], mask[:, kept])
+            short = short_lever_joints(skeleton, self.params.short_lever_cm, observation.observed)
+            reference = smooth_joint_angles(X, observation.observed, short)
             root, angles = inverse_kinematics(skeleton, world, reference[:, 3:].reshape(F, -1, 3),
                                               reference_joints=short)
             out = np.concatenate([root, angles.reshape(F, -1)], axis=1)

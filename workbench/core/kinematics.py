@@ -124,12 +124,15 @@ def inverse_kinematics(
     return root_positions, angles
 
 
-def short_lever_joints(skeleton: Skeleton, lever_cm: float) -> np.ndarray:
+def short_lever_joints(skeleton: Skeleton, lever_cm: float, observed: np.ndarray | None = None) -> np.ndarray:
     """Indices of the joints with a rotation whose ``skeleton.aimed_descendants`` (the
-    nearest descendants off their own position) all lie within ``lever_cm``."""
+    nearest descendants off their own position) all lie within ``lever_cm``; with
+    ``observed`` (F, J), only those observed in some frame (the ones IK can keep at an
+    observed reference)."""
     out = []
     for j in np.flatnonzero(skeleton.has_rotation):
         reach = [np.linalg.norm(skeleton.offsets[c]) * skeleton.unit_cm for c, _ in skeleton.aimed_descendants[j]]
         if reach and max(reach) < lever_cm:
             out.append(int(j))
-    return np.array(out, int)
+    out = np.array(out, int)
+    return out if observed is None else out[np.asarray(observed, bool)[:, out].any(axis=0)]

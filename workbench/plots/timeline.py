@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .style import CURSOR, GAP, TEXT
+from .style import CURSOR, ERROR_LABEL, GAP, TEXT
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ def shade_gaps(ax, missing: np.ndarray, fps: float, label: str = "gaps") -> None
 
 
 def plot_errors(ax, series: list[Series], fps: float, missing: np.ndarray | None = None, title: str = "",
-                ylabel: str = "joint error (cm)") -> None:
+                ylabel: str = ERROR_LABEL) -> None:
     """Joint error over time (cm), one line per series, gap spans shaded where
     ``missing`` (F,) is True."""
     n = len(series[0].values)
