@@ -319,6 +319,24 @@ def test_kalman_noise_estimate_for_known_white_noise():
         assert np.all(np.abs(r / std ** 2 - 1.0) < 0.2), r / std ** 2
 
 
+def test_mean_square_noise_estimate_for_heavy_tailed_noise():
+    """Noise with heavy tails (here Laplace): the median-based estimate misses much of
+    the variance, the mean-square one does not; both hold for Gaussian noise."""
+    from engines.smoothing import measurement_variance
+
+    rng = np.random.default_rng(6)
+    t = np.arange(4000) / 120.0
+    smooth = 30.0 * np.sin(2 * np.pi * 0.7 * t)[:, None] + np.zeros((1, 3))
+    seen = np.ones(smooth.shape, bool)
+    seen[100:140, 1] = False
+    laplace = smooth + rng.laplace(scale=2.0 / np.sqrt(2.0), size=smooth.shape)  # variance 4
+    gauss = smooth + rng.normal(scale=2.0, size=smooth.shape)
+    assert np.all(measurement_variance(laplace, seen) < 0.8 * 4.0)
+    np.testing.assert_allclose(measurement_variance(laplace, seen, robust=False), 4.0, rtol=0.1)
+    for robust in (True, False):
+        np.testing.assert_allclose(measurement_variance(gauss, seen, robust=robust), 4.0, rtol=0.1)
+
+
 @pytest.mark.parametrize("level", [0.1, 0.5, 0.9])
 def test_kalman_noise_estimate_on_mocap(level, clip):
     obs = Observation(noisy(clip, level, seed=2))
