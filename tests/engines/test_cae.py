@@ -220,7 +220,7 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
 def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
     """The correction is the network's miss at the known entries, smoothed and bridged
     across holes: a constant miss comes back whole, one that flips sign every frame
-    (pure noise to the smoother) nearly vanishes, ``exact`` entries get their own miss."""
+    (pure noise to the smoother) loses 90 % or more, ``exact`` entries get their own miss."""
     engine = trained["cae"]
     F, H = 120, 4
     mask = np.ones((F, H), bool)
@@ -235,7 +235,7 @@ def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
     corrected = engine.correction(out + flips, mask, out, exact)
     assert corrected[10, 2] == flips[10, 2]
     corrected[10, 2] = 0.0
-    assert np.abs(corrected).max() < 0.05
+    assert np.abs(corrected).max() < 0.1
 
 
 def test_anchor_brings_the_output_back_to_the_observation(test_clip):
@@ -249,6 +249,16 @@ def test_anchor_brings_the_output_back_to_the_observation(test_clip):
     assert metrics.mpjpe_cm(test_clip, anchored.clean(clean).motion) < 0.05
     noisy = parse_corruption("spatial:1.5").apply(test_clip, seed=0)
     assert metrics.mpjpe_cm(test_clip, anchored.clean(noisy).motion) < metrics.mpjpe_cm(test_clip, noisy.motion)
+
+
+def test_anchor_sheds_the_position_noise_that_angle_noise_makes(test_clip):
+    """Angle noise moves the joints with heavy tails; the anchor's smoother must be told
+    its full variance, or it keeps the noise (the median estimate left the output twice
+    as jerky as the truth and less accurate than kalman's)."""
+    obs = parse_corruption("angular:0.5").apply(test_clip, seed=0)
+    out = registry.create("cae").clean(obs).motion
+    assert metrics.jitter_cm_s3(out) < metrics.jitter_cm_s3(test_clip)
+    assert metrics.mpjpe_cm(test_clip, out) < metrics.mpjpe_cm(test_clip, registry.create("kalman").clean(obs).motion)
 
 
 def test_anchor_sheds_the_noise_of_the_root_track(test_clip):
