@@ -39,13 +39,14 @@ Cleaning a take (Observation -> Motion):
    7 Hz is 1 % of its power at 4 Hz) and damps the ripple by half at 8 frames, 16
    times at 4 and wipes it out at 2. Test split, ``block:120``, seed 0, mean jerk over
    the gaps' frames, without -> with the smoothing: cae 1.29e6 -> 7.6e4 cm/s^3,
-   holden 2.37e6 -> 1.2e5, cae-vanilla 1.07e6 -> 8.9e4; the truth's 2.6e5. With 5
-   seeds the errors stay or drop: ``block:120`` 5.223 -> 5.215 cm, ``block:60`` 3.515
-   -> 3.509, ``spatial:1`` 0.622 -> 0.576, ``drop:0.5`` 0.291 -> 0.268 (``spatial``: mpjpe_cm,
-   else gap_mpjpe_cm). 1.5 frames is the narrowest Gaussian that removes the ripple at 2 and 4 frames. Wider ones lower the
-   errors a little more on validation (subjects 05/06 held out; ``block:120`` 5.175,
-   5.154 and 5.139 cm at 0, 1.5 and 4 frames; ``spatial:1`` 0.577, 0.518 and 0.500)
-   but damp the real motion too (a 5-Hz motion keeps 74 % at 3 frames).
+   holden 2.37e6 -> 1.2e5, cae-vanilla 1.06e6 -> 8.8e4; the truth's 2.6e5. With 5
+   seeds the errors stay or drop: ``block:120`` 5.224 -> 5.217 cm, ``block:60`` 3.515
+   -> 3.510, ``spatial:1`` 0.614 -> 0.569, ``drop:0.5`` 0.293 -> 0.265 (``spatial``:
+   mpjpe_cm, else gap_mpjpe_cm). 1.5 frames is the narrowest Gaussian that removes
+   the ripple at 2 and 4 frames. Wider ones lower the errors a little more on
+   validation (subjects 05/06 held out; ``block:120`` 5.174, 5.158 and 5.143 cm at
+   0, 1.5 and 4 frames; ``spatial:1`` 0.574, 0.516 and 0.499) but damp the real
+   motion too (a 5-Hz motion keeps 74 % at 3 frames).
 3. The root's floor trajectory is the observed one where the root is observed and the
    predicted velocities integrated across the gaps (attached to the known frames at
    both ends); the image on that trajectory gives the raw network positions
@@ -74,15 +75,15 @@ Cleaning a take (Observation -> Motion):
    cm/s^3 (the truth's 2.9e5); ``angular:0.5+gaps:0.01`` 1.778 -> 1.636;
    ``+outliers:0.05`` 6.77 -> 3.41; ``spatial:1`` 0.576 -> 0.569; gaps alike
    (``block:60`` 3.509 -> 3.510). The mean square counts the motion's own
-   accelerations too: a clean take moves by 0.036 cm instead of 0.018. The result keeps the observation's course and sheds
-   its noise: the autoencoder's bottleneck loses a few cm of every pose (test split,
-   no corruption: 3.9 cm, anchored 0.02 cm), a noisy root makes its velocity rows
-   10-20 training deviations wrong (``spatial:1.5``: 9.2 cm, anchored 0.94 cm), and a
-   filled gap joins its ends. ``anchor=false`` returns the network's output as it is, as
-   in the paper (unsmoothed with ``output_sigma_frames=0``). Observed frames change
-   slightly either way. Joints whose children all
-   sit within ``short_lever_cm`` of them (5 cm; CMU: the hands and finger bases) are not
-   aimed from positions, where a few mm of error turn a 3-cm lever by tens of degrees:
+   accelerations too: a clean take moves by 0.036 cm instead of 0.018. The result
+   keeps the observation's course and sheds its noise: the autoencoder's bottleneck
+   loses a few cm of every pose (test split, no corruption: 3.9 cm, anchored 0.04
+   cm), a noisy root makes its velocity rows 10-20 training deviations wrong
+   (``spatial:1.5``: 9.2 cm, anchored 0.80 cm), and a filled gap joins its ends.
+   ``anchor=false`` returns the network's output as it is, as in the paper
+   (unsmoothed with ``output_sigma_frames=0``). Observed frames change slightly
+   either way. Joints whose children all sit within ``short_lever_cm`` of them (5
+   cm; CMU: the hands and finger bases) are not aimed from positions, where a few mm of error turn a 3-cm lever by tens of degrees:
    they keep their observed angles, bridged linearly across the holes, as ``lerp``
    does, and with ``anchor`` smoothed first (:func:`engines.smoothing.smooth_joint_angles`:
    position noise makes the observed hand angles noisy too); IK aims them only when
