@@ -9,7 +9,7 @@ import torch
 
 from workbench import metrics, registry
 from workbench.core.kinematics import forward_kinematics
-from workbench.core.motion import Observation, channel_mask, position_unknown
+from workbench.core.motion import Observation, channel_mask, joint_angle_columns, position_unknown
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
@@ -364,7 +364,7 @@ def test_short_levers_keep_their_observed_angles(test_clip):
     np.testing.assert_allclose(raw[seen], test_clip.angles_deg[:, short][seen], atol=1e-6)
     np.testing.assert_allclose(raw[~seen], registry.create("lerp").clean(obs).motion.angles_deg[:, short][~seen],
                                atol=1e-6)
-    cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+    cols = joint_angle_columns(short)
     anchored = registry.create("cae").clean(obs).motion.channels[:, cols]
     np.testing.assert_allclose(anchored, smooth_observed(obs.motion.channels[:, cols], np.isfinite(
         obs.motion.channels[:, cols])), atol=1e-6)

@@ -15,7 +15,7 @@ from engines.mssa.bases import window_blocks
 from engines.mssa.solver import WindowProjector, robust_filter
 from workbench import registry
 from workbench.core import Observation
-from workbench.core.motion import angle_columns, channel_mask
+from workbench.core.motion import angle_columns, channel_mask, joint_angle_columns
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
 from workbench.metrics import angle_error_deg, bone_lengths
@@ -223,7 +223,7 @@ def test_position_mode_keeps_short_levers_at_their_smoothed_observed_angles(fitt
 
     obs, _, _ = _outlier_case(walk, fitted, rate=0.0)
     short = short_lever_joints(walk.skeleton, 5.0)
-    cols = 3 + (3 * short[:, None] + np.arange(3)).ravel()
+    cols = joint_angle_columns(short)
     kept = with_params(fitted, space="positions").clean(obs).motion.channels[:, cols]
     everywhere = np.ones((walk.n_frames, cols.size), bool)
     np.testing.assert_allclose(kept, smooth_observed(obs.motion.channels[:, cols], everywhere), atol=1e-6)

@@ -151,9 +151,7 @@ def joint_angle_columns(joints) -> np.ndarray:
 def angle_columns(skeleton: Skeleton) -> np.ndarray:
     """Column indices into the channel matrix of the scored joint-angle channels: the
     rotation channels of every joint but the root."""
-    has_rot = skeleton.has_rotation
-    cols = [3 + 3 * j + k for j in range(1, skeleton.n_joints) if has_rot[j] for k in range(3)]
-    return np.array(cols, dtype=int)
+    return joint_angle_columns(np.flatnonzero(skeleton.has_rotation[1:]) + 1)
 
 
 @dataclass(frozen=True, eq=False)
