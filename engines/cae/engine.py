@@ -404,7 +404,7 @@ class ConvAutoencoderEngine(Engine):
             out = out + self.correction(image, mask, out, exact)
             if self.params.anchor and self.params.hole_blend_frames:
                 out = self.blend_short_holes(out, mask)
-        target = decode(layout, out, ground, theta)
+        target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         short, ref, ref_local = self._kept_joints(observation, bridged, ref, ref_local)
         root, angles = inverse_kinematics(skeleton, target, ref, reference_local=ref_local, reference_joints=short)
         channels = rewrap_angles(np.concatenate([root, angles.reshape(observation.n_frames, -1)], axis=1), observation)
