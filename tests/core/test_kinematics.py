@@ -67,6 +67,35 @@ def test_reference_joints_keep_the_reference_angles(walk):
     np.testing.assert_allclose(kept[:, others], free[:, others], atol=1e-9)
 
 
+def test_reference_frames_keep_the_reference_there_and_join_the_aim_without_a_jump(walk):
+    """A joint kept in some frames has the reference's angles there; in the frames between
+    it is aimed, then turned by the reference's departure from the aim, bridged from the
+    kept frames around: a constant departure carries over whole, a changing one is
+    blended in without a jump. Kept in every frame, it is a reference joint."""
+    sk = walk.skeleton
+    foot = sk.index("LeftFoot")
+    truth = walk.angles_deg
+    frames = np.zeros((walk.n_frames, sk.n_joints), bool)
+    frames[:50, foot] = frames[100:, foot] = True
+    kept = frames[:, foot]
+    ref = truth.copy()
+    ref[:, foot, 2] += 10.0  # turned off its toe by 10 degrees about its local x
+    _, aimed = inverse_kinematics(sk, walk.positions, ref)
+    _, out = inverse_kinematics(sk, walk.positions, ref, reference_frames=frames)
+    np.testing.assert_allclose(out[kept, foot], ref[kept, foot], atol=1e-6)
+    np.testing.assert_allclose(out[~kept, foot], ref[~kept, foot], atol=1e-6)  # the departure, carried over
+    assert np.abs(aimed[~kept, foot] - ref[~kept, foot]).max() > 5.0  # the aim alone loses it
+    ref[:, foot, 2] += np.linspace(0.0, 10.0, walk.n_frames)  # a departure that grows from 10 to 20 degrees
+    _, out = inverse_kinematics(sk, walk.positions, ref, reference_frames=frames)
+    np.testing.assert_allclose(out[kept, foot], ref[kept, foot], atol=1e-6)
+    step = np.abs(np.diff(out[:, foot] - truth[:, foot], axis=0)).max(axis=1)
+    assert step[48:101].max() < 2.0 * step[:48].max()
+    everywhere = np.zeros_like(frames)
+    everywhere[:, foot] = True
+    np.testing.assert_array_equal(inverse_kinematics(sk, walk.positions, ref, reference_frames=everywhere)[1],
+                                  inverse_kinematics(sk, walk.positions, ref, reference_joints=[foot])[1])
+
+
 def test_ik_without_reference_reaches_the_positions(walk, kick):
     for m in (walk, kick):
         root, ang = inverse_kinematics(m.skeleton, m.positions)

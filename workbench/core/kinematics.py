@@ -12,7 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rotations import euler_to_matrix, kabsch, matrix_to_euler, nearest_euler, vectors_to_rotation
+from .channels import interpolate_gaps
+from .rotations import (euler_to_matrix, kabsch, matrix_to_euler, matrix_to_quaternion, nearest_euler,
+                        quaternion_to_matrix, vectors_to_rotation)
 from .skeleton import Skeleton
 
 
@@ -65,9 +67,17 @@ def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> 
     return ids, np.stack(np.broadcast_arrays(*vecs), axis=-2)
 
 
+def _bridged_departure(R_aimed: np.ndarray, R_ref: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """(F, 3, 3) rotations D with ``R_aimed @ D = R_ref`` in the ``kept`` frames (F,),
+    bridged linearly as quaternions across the other frames (held before the first kept
+    frame and after the last)."""
+    q = matrix_to_quaternion(np.swapaxes(R_aimed, -1, -2) @ R_ref)
+    return quaternion_to_matrix(interpolate_gaps(q, np.repeat(kept[:, None], 4, axis=1)))
+
+
 def inverse_kinematics(
     skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None, *,
-    reference_local: np.ndarray | None = None, reference_joints=()
+    reference_local: np.ndarray | None = None, reference_joints=(), reference_frames: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Joint angles that place the skeleton's joints at ``positions`` (F, J, 3) as well as
     its fixed bone lengths allow.
@@ -79,6 +89,10 @@ def inverse_kinematics(
     skeleton and the reference is the true motion. ``reference_local``: the reference's
     :func:`local_rotations`, when the caller has them already. ``reference_joints``:
     joints that keep the reference's angles instead of being aimed at their children.
+    ``reference_frames`` (F, J) bool: the frames in which each joint keeps the
+    reference's angles; in its other frames it is aimed, then turned by the reference's
+    departure from the aim, bridged across them from the kept frames around
+    (:func:`_bridged_departure`), so that it joins the kept frames without a jump.
     """
     positions = np.asarray(positions, float)
     F, J = positions.shape[:2]
@@ -89,8 +103,9 @@ def inverse_kinematics(
     R_world = np.empty((F, J, 3, 3))
     R_local = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
-    aimed = skeleton.has_rotation.copy()
-    aimed[list(reference_joints)] = False
+    kept = np.zeros((F, J), bool) if reference_frames is None else np.array(reference_frames, bool)
+    kept[:, list(reference_joints)] = True
+    aimed = skeleton.has_rotation & ~kept.all(axis=0)
     root_positions = positions[:, 0] - skeleton.offsets[0]
     solved = []  # joints aimed at their children; the others keep the reference's angles
     for j, p in enumerate(skeleton.parents):
@@ -114,6 +129,8 @@ def inverse_kinematics(
                 sines = np.linalg.norm(np.cross(vecs[..., :1, :], vecs[..., 1:, :]), axis=-1)
                 spread = (sines > 1e-6 * lengths[..., :1] * lengths[..., 1:]).any(axis=-1)
                 R_j = np.where(spread[..., None, None], kabsch(vecs, targets), R_j)
+            if kept[:, j].any():
+                R_j = R_j @ _bridged_departure(R_j, R_ref, kept[:, j])
             R_local[:, j] = R_j
         R_world[:, j] = R_local[:, j] if R_parent is None else R_parent @ R_local[:, j]
     angles = ref.copy()
