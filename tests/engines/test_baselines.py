@@ -337,6 +337,25 @@ def test_mean_square_noise_estimate_for_heavy_tailed_noise():
         np.testing.assert_allclose(measurement_variance(gauss, seen, robust=robust), 4.0, rtol=0.1)
 
 
+@pytest.mark.parametrize("corruption, quieter", [("angular:0.5", True), ("angular:0.1", True),
+                                                  ("spatial:1", False), ("angular:0.5+outliers:0.05", False)])
+def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter, clip):
+    """The feet's observed angles tell their direction better than the toe's observed
+    position does under angle noise (the toe carries the noise of the whole leg), not
+    under position noise, and not when the angles have outliers."""
+    from engines.identity import bridge_gaps
+    from engines.smoothing import angles_are_quieter
+    from workbench.corruption import parse_corruption
+
+    sk = clip.skeleton
+    feet = [sk.index("LeftFoot"), sk.index("RightFoot")]
+    obs = parse_corruption(corruption).apply(clip, seed=0)
+    bridged = bridge_gaps(obs)
+    positions = obs.motion.with_channels(bridged).positions
+    assert angles_are_quieter(sk, bridged, obs.observed, positions, feet).tolist() == [quieter] * 2
+    assert angles_are_quieter(sk, bridged, obs.observed, positions, []).shape == (0,)
+
+
 @pytest.mark.parametrize("level", [0.1, 0.5, 0.9])
 def test_kalman_noise_estimate_on_mocap(level, clip):
     obs = Observation(noisy(clip, level, seed=2))
