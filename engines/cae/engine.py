@@ -149,6 +149,7 @@ from workbench.core.kinematics import forward_kinematics, inverse_kinematics, lo
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.engine import CleanResult, Engine, EngineError
 
+from ..blas import one_blas_thread
 from ..gaussian import normalized_gaussian
 from ..identity import bridge_gaps, rewrap_angles
 from ..smoothing import (angles_are_quieter, cv_smooth, measurement_variance, smooth_and_fill, smooth_joint_angles,
@@ -390,6 +391,7 @@ class ConvAutoencoderEngine(Engine):
             total += y[:, perm] * sign if mirrored else y
         return total / len(batch)
 
+    @one_blas_thread
     def clean(self, observation: Observation, /, *, constraints: Constraints | None = None) -> CleanResult:
         """Fill the gaps of (and denoise) ``observation``; ``constraints`` maps a joint index
         to (frames (n,), world positions (n, 3) in file units) that guide the network."""

@@ -38,6 +38,7 @@ from workbench.core.motion import Motion, Observation, angle_columns, channel_ma
 from workbench.corruption import parse_corruption
 from workbench.engine import CleanResult, EngineInfo
 
+from ..blas import one_blas_thread
 from ..identity import rewrap_angles
 from .base import ARCH, TrainingParams, WindowEngine
 from .features import RADIUS
@@ -114,6 +115,7 @@ class EBD(WindowEngine):
                 pairs.append((Observation(obs.motion, observed), m))
         return pairs
 
+    @one_blas_thread
     def clean(self, observation: Observation, /) -> CleanResult:
         """The observation with its missing joint angles synthesised (observed samples
         unchanged); no diagnostics."""

@@ -47,6 +47,7 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
 from workbench.engine import CleanResult, EngineInfo
 
+from ..blas import one_blas_thread
 from ..identity import rewrap_angles
 from .base import ARCH, WindowEngine, TrainingParams
 from .features import RADIUS
@@ -150,6 +151,7 @@ class FilterEngine(WindowEngine):
                 pairs.append((parse_corruption(slot[rng.integers(len(slot))]).apply(clean, int(next(seeds))), clean))
         return pairs
 
+    @one_blas_thread
     def clean(self, observation: Observation, /) -> CleanResult:
         """Cleaned motion (gaps bridged linearly, then filtered) and diagnostics (F, D)."""
         self._ready(observation)
