@@ -36,6 +36,7 @@ import scipy.fft as sfft
 from scipy.linalg import solveh_banded
 
 from workbench.core.channels import interpolate_gaps
+from workbench.core.kinematics import short_lever_joints
 from workbench.core.motion import channel_mask, joint_angle_columns
 
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
@@ -267,3 +268,27 @@ def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, pos
     both = seen & np.repeat(observed[:, children], 3, axis=1)
     position_noise = measurement_variance(relative, both).reshape(n, 3).mean(axis=1)
     return (angle_noise < position_noise) & (heavy < OUTLIER_VARIANCE_RATIO * angle_noise)
+
+
+def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float,
+                 angle_lever_cm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What IK (:func:`workbench.core.kinematics.inverse_kinematics`) keeps of an
+    observation when an engine has cleaned its joint positions: the reference angles
+    (F, J, 3) degrees, every joint's observed angles smoothed by
+    :func:`smooth_joint_angles` (the twist about single-child bones and the leaves come
+    from them); the joints whose children all lie within ``short_lever_cm`` and are
+    observed somewhere, kept at the reference in every frame (a few mm of position error
+    turn a 3-cm lever by tens of degrees); and the frames (F, J) in which the joints
+    aimed at one descendant within ``angle_lever_cm`` keep it: where they are observed,
+    in takes where their angles are quieter than the positions (:func:`angles_are_quieter`).
+    ``channels`` (F, 3 + 3J) with gaps bridged, ``observed`` (F, J), ``positions``
+    (F, J, 3) by FK of the channels."""
+    short = short_lever_joints(skeleton, short_lever_cm, observed)
+    joints = np.flatnonzero(skeleton.has_rotation[1:]) + 1
+    reference = smooth_joint_angles(channels, observed, joints)[:, 3:].reshape(positions.shape)
+    lever = np.array([j for j in short_lever_joints(skeleton, angle_lever_cm, observed)
+                      if j not in short and len(skeleton.aimed_descendants[j]) == 1], int)
+    quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever)]
+    frames = np.zeros(observed.shape, bool)
+    frames[:, quiet] = observed[:, quiet]
+    return reference, short, frames

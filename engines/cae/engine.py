@@ -152,8 +152,7 @@ from workbench.engine import CleanResult, Engine, EngineError
 from ..blas import one_blas_thread
 from ..gaussian import normalized_gaussian
 from ..identity import bridge_gaps, rewrap_angles
-from ..smoothing import (angles_are_quieter, cv_smooth, measurement_variance, smooth_and_fill, smooth_joint_angles,
-                         smoothing_ratio)
+from ..smoothing import cv_smooth, ik_reference, measurement_variance, smooth_and_fill, smoothing_ratio
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, reverse_time, trajectory, turn_y, wrap)
 
@@ -442,30 +441,16 @@ class ConvAutoencoderEngine(Engine):
 
     def _ik_reference(self, observation: Observation, bridged: np.ndarray, positions: np.ndarray, ref: np.ndarray,
                       ref_local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """What IK keeps of the observation: the short-lever joints observed somewhere in
-        the take, kept in every frame; the frames (F, J) in which other joints keep their
-        angles; and the reference (angles (F, J, 3), local rotations (F, J, 3, 3)): the
-        bridged observation, with ``anchor`` its joint angles smoothed
-        (:func:`engines.smoothing.smooth_joint_angles`; the twist about single-child
-        bones and the leaves come from it). With ``anchor`` the joints aimed at one
-        descendant within ``angle_lever_cm`` keep their smoothed angles in the frames
-        they are observed where those tell the bone's direction better than the
-        positions (:func:`engines.smoothing.angles_are_quieter`); ``positions`` (F, J, 3)
-        are the bridged observation's."""
+        """What IK keeps of the observation: with ``anchor``
+        :func:`engines.smoothing.ik_reference` (its joints, frames and smoothed reference
+        angles, with their local rotations); without it the bridged observation's
+        reference angles and local rotations, and the short levers in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
-        short = short_lever_joints(skeleton, self.params.short_lever_cm, observed)
-        frames = np.zeros(observed.shape, bool)
-        if not self.params.anchor:
-            return short, frames, ref, ref_local
-        joints = np.flatnonzero(skeleton.has_rotation[1:]) + 1
-        ref = smooth_joint_angles(bridged, observed, joints)[:, 3:].reshape(ref.shape)
-        ref_local = ref_local.copy()
-        ref_local[:, joints] = local_rotations(skeleton, ref, joints)
-        lever = [j for j in short_lever_joints(skeleton, self.params.angle_lever_cm, observed)
-                 if j not in short and len(skeleton.aimed_descendants[j]) == 1]
-        quiet = np.array(lever, int)[angles_are_quieter(skeleton, bridged, observed, positions, lever)]
-        frames[:, quiet] = observed[:, quiet]
-        return short, frames, ref, ref_local
+        p = self.params
+        if not p.anchor:
+            return short_lever_joints(skeleton, p.short_lever_cm, observed), np.zeros(observed.shape, bool), ref, ref_local
+        ref, short, frames = ik_reference(skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm)
+        return short, frames, ref, local_rotations(skeleton, ref)
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
         """The network's completion ``out`` (F, H) smoothed over time by a Gaussian of std
