@@ -18,15 +18,20 @@ the result goes back onto the observation's own angle branch. ``space="positions
 filters root-relative joint positions (F, 3J) in file units, computed by forward
 kinematics from that bridged observation; a position counts as observed where all its
 joint's ancestors are. The cleaned positions go back to angles by
-``inverse_kinematics`` with the bridged observed angles as the reference (twist about
-single-child bones and leaf rotations come from it), so bone lengths are the
-skeleton's. Joints whose children all lie within ``short_lever_cm`` (the hands and
-finger bases) are not aimed, where a few mm of position error turn the angle by tens of
-degrees: they keep their observed angles smoothed by the ``kalman`` engine's smoother,
-the rule of ``cae`` (test split, 5 seeds, rms_angle_deg aimed -> kept: angular:0.5 4.71
--> 3.79, +outliers:0.05 16.1 -> 10.6, spatial:1 2.29 -> 1.96; mpjpe within 0.03 cm). The
-angles of this space stay well behind those of ``space="angles"`` (1.5 degrees at
-angular:0.5); it is the choice for joint-position noise (spatial:1: mpjpe 0.57 cm).
+``inverse_kinematics`` with what :func:`engines.smoothing.ik_reference` keeps of the
+observation, as ``cae`` does, so bone lengths are the skeleton's: the observed angles
+smoothed by the ``kalman`` engine's smoother as the reference (twist about single-child
+bones and leaf rotations come from it); joints whose children all lie within
+``short_lever_cm`` (the hands and finger bases) kept at it, where a few mm of position
+error turn the angle by tens of degrees (test split, 5 seeds, rms_angle_deg aimed ->
+kept: angular:0.5 4.71 -> 3.79, +outliers:0.05 16.1 -> 10.6, spatial:1 2.29 -> 1.96;
+mpjpe within 0.03 cm); and joints aimed at one descendant within ``angle_lever_cm``
+(the feet, spine and neck) kept at it where they are observed, when the take's noise is
+in the angles (test split, 2 seeds, before -> after: angular:0.5 3.48 -> 1.60 degrees,
+mpjpe 1.231 -> 1.187 cm; gaps:0.01 2.11 -> 1.82; spatial:1 2.10 -> 2.19, mpjpe 0.579 ->
+0.581, the cost of smoothing twist the spatial corruption keeps true). The angles of
+this space stay behind those of ``space="angles"`` (1.19 degrees at angular:0.5); it is
+the choice for joint-position noise (spatial:1: mpjpe 0.58 cm).
 ``fit`` learns the bases of both spaces and saves both.
 
 Normalisation, per channel: u = (x - c) / s. The centre c is the take's own median of

@@ -13,13 +13,13 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
-from workbench.core.kinematics import inverse_kinematics, short_lever_joints
+from workbench.core.kinematics import inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
 from ..identity import bridge_gaps
-from ..smoothing import measurement_variance, smooth_joint_angles, smooth_observed, smoothing_ratio
+from ..smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -135,6 +135,10 @@ class MSSA(Engine):
         #: kalman smoother, instead of being aimed from the filtered positions (as in
         #: ``cae``); 0: aim every joint
         short_lever_cm: float = 5.0
+        #: space "positions": joints aimed at one descendant within this many cm keep
+        #: their smoothed observed angles where the noise is in the angles (as in
+        #: ``cae``; :func:`engines.smoothing.ik_reference`); 0: none
+        angle_lever_cm: float = 13.5
 
         def __post_init__(self) -> None:
             if self.space not in SPACES:
@@ -160,8 +164,9 @@ class MSSA(Engine):
                                  'for the alternating solver')
             if self.start_median_frames < 1:
                 raise ValueError(f"start_median_frames must be at least 1, got {self.start_median_frames}")
-            if not (math.isfinite(self.short_lever_cm) and self.short_lever_cm >= 0):
-                raise ValueError(f"short_lever_cm must be 0 (off) or a length in cm, got {self.short_lever_cm}")
+            for name in ("short_lever_cm", "angle_lever_cm"):
+                if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                    raise ValueError(f"{name} must be 0 (off) or a length in cm, got {getattr(self, name)}")
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -262,10 +267,11 @@ class MSSA(Engine):
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
             world = out.reshape(F, -1, 3) + root_joint[:, None]
-            short = short_lever_joints(skeleton, self.params.short_lever_cm, observation.observed)
-            reference = smooth_joint_angles(X, observation.observed, short)
-            root, angles = inverse_kinematics(skeleton, world, reference[:, 3:].reshape(F, -1, 3),
-                                              reference_joints=short)
+            seen = observation.motion.with_channels(X).positions
+            reference, short, frames = ik_reference(skeleton, X, observation.observed, seen,
+                                                    self.params.short_lever_cm, self.params.angle_lever_cm)
+            root, angles = inverse_kinematics(skeleton, world, reference, reference_joints=short,
+                                              reference_frames=frames)
             out = np.concatenate([root, angles.reshape(F, -1)], axis=1)
         out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
         motion = observation.motion.with_channels(out)

@@ -388,7 +388,7 @@ def test_short_levers_keep_their_observed_angles(test_clip):
     anchored = registry.create("cae").clean(obs).motion.channels[:, cols]
     np.testing.assert_allclose(anchored, smooth_observed(obs.motion.channels[:, cols], np.isfinite(
         obs.motion.channels[:, cols])), atol=1e-6)
-    free = registry.create("cae:short_lever_cm=0").clean(obs).motion.angles_deg[:, short]
+    free = registry.create("cae:short_lever_cm=0,angle_lever_cm=0").clean(obs).motion.angles_deg[:, short]
     assert np.abs(free[seen] - test_clip.angles_deg[:, short][seen]).max() > 0.5
     noisy = parse_corruption("spatial:1").apply(test_clip, seed=0)
     out = registry.create("cae").clean(noisy).motion.angles_deg[:, short]

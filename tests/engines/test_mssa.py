@@ -16,6 +16,7 @@ from engines.mssa.solver import WindowProjector, robust_filter
 from workbench import registry
 from workbench.core import Observation
 from workbench.core.motion import angle_columns, channel_mask, joint_angle_columns
+from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
 from workbench.metrics import angle_error_deg, bone_lengths
@@ -227,12 +228,25 @@ def test_position_mode_keeps_short_levers_at_their_smoothed_observed_angles(fitt
     kept = with_params(fitted, space="positions").clean(obs).motion.channels[:, cols]
     everywhere = np.ones((walk.n_frames, cols.size), bool)
     np.testing.assert_allclose(kept, smooth_observed(obs.motion.channels[:, cols], everywhere), atol=1e-6)
-    aimed = with_params(fitted, space="positions", short_lever_cm=0.0).clean(obs).motion
+    aimed = with_params(fitted, space="positions", short_lever_cm=0.0, angle_lever_cm=0.0).clean(obs).motion
 
     def rms(channels):
         return float(np.sqrt(np.mean(np.square(channels - walk.channels[:, cols]))))
 
     assert rms(kept) < 0.7 * rms(aimed.channels[:, cols])
+
+
+def test_position_mode_keeps_the_feet_at_their_smoothed_angles_under_angle_noise(fitted, walk):
+    # as in cae: aimed at a toe whose position carries the whole leg's noise, a foot
+    # turns far more than its own smoothed angles do (engines.smoothing.ik_reference)
+    feet = [walk.skeleton.index(n) for n in ("LeftFoot", "RightFoot")]
+    obs = parse_corruption("angular:0.5").apply(walk, seed=0)
+
+    def feet_error(**params):
+        out = with_params(fitted, space="positions", **params).clean(obs).motion
+        return np.sqrt(np.mean((out.angles_deg[:, feet] - walk.angles_deg[:, feet]) ** 2))
+
+    assert feet_error() < 0.5 * feet_error(angle_lever_cm=0.0)
 
 
 def test_refuses_another_skeleton_and_mixed_training(fitted, walk, kick):
