@@ -1,6 +1,8 @@
 """The constant-velocity smoother of a bank of channels and the estimator of its noise
 variances: the ``kalman`` engine's numerics, shared with ``mssa`` (its smoothness prior)
-and the motion-image autoencoders (their anchor to the observation).
+and the motion-image autoencoders (their anchor to the observation); and, built on
+them, what IK keeps of an observation for the engines that clean joint positions
+(:func:`ik_reference`: ``cae`` and its baselines, ``mssa``'s position mode).
 
 The model, per channel, in frames (``dt = 1``)::
 
