@@ -188,13 +188,13 @@ class TrainingParams:
     descendant this close keep their smoothed observed angles where the noise is in the
     angles, 0 for none (both: the module docstring); ``views``: how many of
     :data:`VIEWS` (the take, its left/right mirror, the take played backwards, the mirror
-    played backwards) are completed and averaged (all: the module docstring); ``short_hole_frames``: holes in a
-    joint's angles up to this long are bridged linearly, as ``lerp`` does, and count as
-    observed (0: none); ``hole_blend_frames``: inside a hole shorter than this the
-    network's fill is blended with the constant-velocity smoother's (0: none; both: the
-    module docstring); ``output_sigma_frames``: the network's completion is smoothed over
-    time by a Gaussian of this std in frames before it is used (0: none; the module
-    docstring)."""
+    played backwards) are completed and averaged (all: the module docstring);
+    ``short_hole_frames``: holes in a joint's angles up to this long are bridged
+    linearly, as ``lerp`` does, and count as observed (0: none); ``hole_blend_frames``:
+    inside a hole shorter than this the network's fill is blended with the
+    constant-velocity smoother's (0: none; both: the module docstring);
+    ``output_sigma_frames``: the network's completion is smoothed over time by a
+    Gaussian of this std in frames before it is used (0: none; the module docstring)."""
 
     epochs: int = 120
     frames_per_epoch: int = 100_000
