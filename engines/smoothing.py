@@ -255,7 +255,8 @@ def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, pos
     inertial capture has) favours the angles: the relative position carries the noise of
     every joint above; noise on the positions (markers) does not. ``channels`` (F, 3 + 3J)
     degrees, gaps bridged; ``observed`` (F, J); ``positions`` (F, J, 3) by FK of the
-    channels, file units. Variances from :func:`measurement_variance`."""
+    channels, file units, less any common offset. Variances from
+    :func:`measurement_variance`."""
     joints = np.asarray(joints, int)
     if not joints.size:
         return np.zeros(0, bool)
@@ -284,7 +285,8 @@ def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions
     aimed at one descendant within ``angle_lever_cm`` keep it: where they are observed,
     in takes where their angles are quieter than the positions (:func:`angles_are_quieter`).
     ``channels`` (F, 3 + 3J) with gaps bridged, ``observed`` (F, J), ``positions``
-    (F, J, 3) by FK of the channels."""
+    (F, J, 3) by FK of the channels (only differences between joints are used, so any
+    common offset, e.g. the root's, may be taken off)."""
     short = short_lever_joints(skeleton, short_lever_cm, observed)
     joints = np.flatnonzero(skeleton.has_rotation[1:]) + 1
     reference = smooth_joint_angles(channels, observed, joints)[:, 3:].reshape(positions.shape)

@@ -267,8 +267,7 @@ class MSSA(Engine):
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
             world = out.reshape(F, -1, 3) + root_joint[:, None]
-            seen = observation.motion.with_channels(X).positions
-            reference, short, frames = ik_reference(skeleton, X, observation.observed, seen,
+            reference, short, frames = ik_reference(skeleton, X, observation.observed, Y.reshape(F, -1, 3),
                                                     self.params.short_lever_cm, self.params.angle_lever_cm)
             root, angles = inverse_kinematics(skeleton, world, reference, reference_joints=short,
                                               reference_frames=frames)
