@@ -39,7 +39,7 @@ from scipy.linalg import solveh_banded
 
 from workbench.core.channels import interpolate_gaps
 from workbench.core.kinematics import short_lever_joints
-from workbench.core.motion import channel_mask, joint_angle_columns
+from workbench.core.motion import angle_joints, channel_mask, joint_angle_columns
 
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10
@@ -288,8 +288,7 @@ def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions
     (F, J, 3) by FK of the channels (only differences between joints are used, so any
     common offset, e.g. the root's, may be taken off)."""
     short = short_lever_joints(skeleton, short_lever_cm, observed)
-    joints = np.flatnonzero(skeleton.has_rotation[1:]) + 1
-    reference = smooth_joint_angles(channels, observed, joints)[:, 3:].reshape(positions.shape)
+    reference = smooth_joint_angles(channels, observed, angle_joints(skeleton))[:, 3:].reshape(positions.shape)
     lever = np.array([j for j in short_lever_joints(skeleton, angle_lever_cm, observed)
                       if j not in short and len(skeleton.aimed_descendants[j]) == 1], int)
     quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever)]

@@ -148,10 +148,16 @@ def joint_angle_columns(joints) -> np.ndarray:
     return (3 + 3 * np.asarray(joints, int)[:, None] + np.arange(3)).ravel()
 
 
+def angle_joints(skeleton: Skeleton) -> np.ndarray:
+    """Indices of the joints whose angles are the joint-angle channels: every joint with
+    a rotation but the root."""
+    return np.flatnonzero(skeleton.has_rotation[1:]) + 1
+
+
 def angle_columns(skeleton: Skeleton) -> np.ndarray:
     """Column indices into the channel matrix of the scored joint-angle channels: the
-    rotation channels of every joint but the root."""
-    return joint_angle_columns(np.flatnonzero(skeleton.has_rotation[1:]) + 1)
+    rotation channels of :func:`angle_joints`."""
+    return joint_angle_columns(angle_joints(skeleton))
 
 
 @dataclass(frozen=True, eq=False)
