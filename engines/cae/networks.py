@@ -5,9 +5,10 @@ the known-entries mask as a second channel (our addition: a zero then never read
 "exactly the training mean"), to the completed image (B, H, T), in normalised units.
 T must be a multiple of ``time_multiple`` (callers pad the clip); H is padded to a
 multiple of ``row_multiple`` inside (the last row repeated) and cropped again. The body
-runs under bf16 autocast in channels_last layout (4-5x faster on this CPU,
-PERFORMANCE.md); the output layer runs in float32 so the result carries no bf16
-rounding. Weights start from He (kaiming) initialisation: with PyTorch's default the 2-D
+runs in channels_last layout, under bf16 autocast where the CPU runs bf16 natively (4-5x
+faster with AMX, PERFORMANCE.md; elsewhere bf16 is emulated and far slower, so the body
+runs in float32: :func:`engines.torch_support.bf16_is_native`); the output layer runs in
+float32 so the result carries no bf16 rounding. Weights start from He (kaiming) initialisation: with PyTorch's default the 2-D
 autoencoder does not learn here. Leaky ReLU slope 0.2.
 
 * :class:`KaufmannNet` (``cae``, §3.2): 5 encoding units of two 3x3 convolutions with
@@ -32,6 +33,8 @@ import copy
 import torch
 from torch import nn
 
+from engines.torch_support import bf16_is_native
+
 LEAK = 0.2
 
 
@@ -49,8 +52,9 @@ def he_init(module: nn.Module) -> None:
 
 
 class ImageNet(nn.Module):
-    """Shared forward pass: ``body`` under bf16 autocast (when ``bf16``), ``head`` in
-    float32. Subclasses set body, head and the multiples."""
+    """Shared forward pass: ``body`` under bf16 autocast (when ``bf16`` is asked for and
+    the CPU runs it natively), ``head`` in float32. Subclasses set body, head and the
+    multiples."""
 
     time_multiple = 32
     row_multiple = 32
@@ -58,7 +62,7 @@ class ImageNet(nn.Module):
 
     def __init__(self, body: nn.Module, head: nn.Module, bf16: bool) -> None:
         super().__init__()
-        self.body, self.head, self.bf16 = body, head, bf16
+        self.body, self.head, self.bf16 = body, head, bf16 and bf16_is_native()
         he_init(self)
         if self.channels_last:
             self.to(memory_format=torch.channels_last)

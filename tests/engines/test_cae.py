@@ -478,12 +478,14 @@ def test_time_reversal_is_the_image_of_the_take_played_backwards(walk):
     np.testing.assert_array_equal(again_mask, mask)
 
 
-def test_eval_forward_casts_the_weights_once_and_follows_new_ones():
+def test_eval_forward_casts_the_weights_once_and_follows_new_ones(monkeypatch):
     """In eval mode the bf16 body is a cached copy: same output as autocast, and rebuilt
-    when weights are loaded or training resumes."""
-    from engines.cae.networks import KaufmannNet
+    when weights are loaded or training resumes (bf16 forced on a CPU that emulates it)."""
+    import engines.cae.networks as networks
 
-    net = KaufmannNet().eval()
+    monkeypatch.setattr(networks, "bf16_is_native", lambda: True)
+    net = networks.KaufmannNet().eval()
+    assert net.bf16
     x = torch.randn(2, 2, 64, 64)
 
     def autocast_forward():
@@ -497,3 +499,18 @@ def test_eval_forward_casts_the_weights_once_and_follows_new_ones():
     with torch.inference_mode():
         torch.testing.assert_close(net(x), autocast_forward(), rtol=0, atol=0)
     assert not any("bf16" in k for k in net.state_dict())
+
+
+def test_networks_run_float32_where_bf16_is_emulated(monkeypatch):
+    """On a CPU without native bf16 (AVX2 only) the body runs in float32, bf16 asked or
+    not: emulated bf16 is many times slower there."""
+    import engines.cae.networks as networks
+
+    monkeypatch.setattr(networks, "bf16_is_native", lambda: False)
+    asked, plain = networks.KaufmannNet(bf16=True).eval(), networks.KaufmannNet(bf16=False).eval()
+    assert not asked.bf16
+    plain.load_state_dict(asked.state_dict())
+    x = torch.randn(2, 2, 64, 64)
+    with torch.inference_mode():
+        torch.testing.assert_close(asked(x), plain(x), rtol=0, atol=0)
+        assert asked.body(x.contiguous(memory_format=torch.channels_last)).dtype == torch.float32
