@@ -18,6 +18,8 @@ from .take import EngineRun, Take, open_take, run_engine, scene_panes
 
 PANE_PX = (420, 460)
 DPI = 110
+#: inches of figure height per heatmap (filter widths, data weights) in the bottom row
+MAP_HEIGHT_IN = 2.0
 FORMATS = (".png", ".pdf")
 
 
@@ -57,10 +59,16 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
     image = render_panes(take, runs, frame)
     width = max(12.0, image.shape[1] / DPI)
     views_h = width * image.shape[0] / image.shape[1] + 0.2 * (len(runs) + 1)  # the image, the scores
-    fig = Figure(figsize=(width, views_h + 8.5), dpi=DPI, layout="constrained")
+    n_widths = sum(r.filter_sigma_frames is not None for r in runs)
+    n_weights = sum(r.robust_weight is not None for r in runs)
+    # (draw, heatmaps): the filter widths (or the note that no engine has any), the data weights
+    panels = [(draw_filter_widths, max(n_widths, 1))] * (n_widths > 0 or n_weights == 0)
+    panels += [(draw_data_weights, n_weights)] * (n_weights > 0)
+    maps_h = max(4.0, MAP_HEIGHT_IN * sum(n for _, n in panels))
+    fig = Figure(figsize=(width, views_h + 4.5 + maps_h), dpi=DPI, layout="constrained")
     fig.suptitle(f"{take.source} · corruption {take.corruption} · seed {take.seed} · frame {frame} "
                  f"({frame / take.fps:.2f} s)", fontsize="large")
-    views, errors, bottom = fig.subfigures(3, 1, height_ratios=[views_h, 4.5, 4.0])
+    views, errors, bottom = fig.subfigures(3, 1, height_ratios=[views_h, 4.5, maps_h])
     ax = views.subplots()
     ax.imshow(image, interpolation="nearest")
     ax.set_axis_off()
@@ -70,10 +78,8 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
         ax.set_title(scores_text(take, runs), fontsize="medium", loc="left")
     axes = draw_errors(errors, take, runs, selected)
     maps, bones = bottom.subfigures(1, 2, width_ratios=[1.1, 1.0])
-    widths = any(r.filter_sigma_frames is not None for r in runs)
-    weights = any(r.robust_weight is not None for r in runs)
-    panels = [draw_filter_widths] * (widths or not weights) + [draw_data_weights] * weights
-    for sub, draw in zip(maps.subfigures(len(panels), 1, squeeze=False)[:, 0], panels, strict=True):
+    subs = maps.subfigures(len(panels), 1, squeeze=False, height_ratios=[n for _, n in panels])[:, 0]
+    for sub, (draw, _) in zip(subs, panels, strict=True):
         axes += draw(sub, take, runs, selected)
     draw_bone_lengths(bones, take, runs, selected)
     TimeCursor(axes, take.fps, animated=False).move(frame, blit=False)
