@@ -52,7 +52,7 @@ def test_compare_mode_shows_every_engine_side_by_side(window, qtbot):
     window.session.set_compare(True)
     settle(qtbot, window)
     titles = [p.title for p in window.scene.scene.panes]
-    assert titles == ["noisy\nangular:0.5+gaps:0.01", "cleaned\nidentity", "cleaned\ntest-widths"]
+    assert titles == ["noisy\nangular:0.5\n+gaps:0.01", "cleaned\nidentity", "cleaned\ntest-widths"]
     assert len(window.plots.canvases[0].figure.axes[0].get_lines()) >= 3, "an RMS line per engine and the noisy"
 
 

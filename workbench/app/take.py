@@ -20,7 +20,7 @@ from ..render.scene import skeleton_points
 
 DEFAULT_CLIP = "cmu/walk/35_31"
 DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
-DEFAULT_ENGINES = ("ebd>ebf", "cae", "lerp>gaussian", "kalman")
+DEFAULT_ENGINES = ("ebd>ebf", "cae", "mssa", "lerp>gaussian", "kalman")
 MOTION_SUFFIXES = (".bvh", ".amc")
 
 
@@ -235,7 +235,8 @@ def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str
     from ..render import Pane
 
     ghost = take.truth_track.points if take.truth_track else None
-    noisy_title = f"noisy\n{take.corruption}" if take.truth is not None else "noisy\nas recorded"
+    corruption = take.corruption.replace("+", "\n+")  # a line per model: fits a narrow pane
+    noisy_title = f"noisy\n{corruption}" if take.truth is not None else "noisy\nas recorded"
     panes = [Pane(noisy_title, take.noisy.points, take.noisy.errors_cm, take.missing)]
     for spec in specs:
         run = runs.get(spec)
