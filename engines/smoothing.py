@@ -223,6 +223,22 @@ def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return cv_smooth(bridged, observed, *estimate_noise(bridged, observed))
 
 
+def fill_holes_smoothly(Y: np.ndarray, observed: np.ndarray, holes: np.ndarray) -> np.ndarray:
+    """(F, D) ``Y`` (gaps bridged, e.g. linearly) with its ``holes`` (F, D), missing
+    entries of ``observed`` (F, D), refilled with the path :func:`smooth_and_fill` takes
+    across them; every other entry as it is. At the noise it estimates from the
+    channel's samples, that path is a cubic spline through the samples around a hole on
+    a clean take (the smoother of a clean channel interpolates) and a smoothing spline on
+    a noisy one, where a line would join two noisy samples."""
+    cols = np.flatnonzero(holes.any(axis=0))
+    if not cols.size:
+        return Y
+    out = np.array(Y, dtype=float)
+    fill = smooth_and_fill(out[:, cols], observed[:, cols])
+    out[:, cols] = np.where(holes[:, cols], fill, out[:, cols])
+    return out
+
+
 def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed
     ends)."""

@@ -376,6 +376,26 @@ def test_kalman_fixed_noise_parameters(clip):
     assert angle_rms(heavy, obs.motion) > angle_rms(light, obs.motion)
 
 
+def test_short_holes_are_filled_along_the_smoothers_path():
+    """fill_holes_smoothly refills the holes it is given with the constant-velocity
+    smoother's path, far nearer a smooth truth than the line across; every other entry
+    (observed, or in a hole it is not given) stays as bridged."""
+    from engines.smoothing import fill_holes_smoothly
+
+    t = np.arange(240.0)
+    truth = np.column_stack([np.sin(t / 12.0), np.cos(t / 7.0)])
+    observed = np.ones(truth.shape, bool)
+    observed[50:56, 0] = False                  # a short hole: refilled
+    observed[100:160, 1] = False                # a long one: left to the caller
+    bridged = interpolate_gaps(truth, observed)
+    holes = ~observed
+    holes[:, 1] = False
+    out = fill_holes_smoothly(bridged, observed, holes)
+    np.testing.assert_array_equal(out[~holes], bridged[~holes])
+    line, smooth = (np.abs(x[50:56, 0] - truth[50:56, 0]).max() for x in (bridged, out))
+    assert smooth < 0.1 * line, (smooth, line)
+
+
 def test_cv_smoother_equals_rts_recursion():
     from engines.smoothing import cv_smooth
 
