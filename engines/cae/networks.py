@@ -8,8 +8,9 @@ multiple of ``row_multiple`` inside (the last row repeated) and cropped again. T
 runs in channels_last layout, under bf16 autocast where the CPU runs bf16 natively (4-5x
 faster with AMX, PERFORMANCE.md; elsewhere bf16 is emulated and far slower, so the body
 runs in float32: :func:`engines.torch_support.bf16_is_native`); the output layer runs in
-float32 so the result carries no bf16 rounding. Weights start from He (kaiming) initialisation: with PyTorch's default the 2-D
-autoencoder does not learn here. Leaky ReLU slope 0.2.
+float32 so the result carries no bf16 rounding. Weights start from He (kaiming)
+initialisation: with PyTorch's default the 2-D autoencoder does not learn here. Leaky
+ReLU slope 0.2.
 
 * :class:`KaufmannNet` (``cae``, §3.2): 5 encoding units of two 3x3 convolutions with
   leaky ReLU and 2x2 max pooling; 5 decoding units mirroring them, each a strided 3x3
