@@ -261,21 +261,14 @@ def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.n
 OUTLIER_VARIANCE_RATIO = 3.0
 
 
-def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
-                       joints) -> np.ndarray:
-    """Which of ``joints`` (n,) (each aimed at one descendant) are better told by their
-    observed angles than by the observed positions, (n,) bool: the angles' noise, as the
-    moved descendant sees it (variance in rad^2 times the lever^2), is below the noise of
-    the descendant's position seen from the joint, and the angles carry no outliers (the
-    smoother would pass them; :data:`OUTLIER_VARIANCE_RATIO`). Noise in the angles (as
-    inertial capture has) favours the angles: the relative position carries the noise of
-    every joint above; noise on the positions (markers) does not. ``channels`` (F, 3 + 3J)
-    degrees, gaps bridged; ``observed`` (F, J); ``positions`` (F, J, 3) by FK of the
-    channels, file units, less any common offset. Variances from
-    :func:`measurement_variance`."""
-    joints = np.asarray(joints, int)
-    if not joints.size:
-        return np.zeros(0, bool)
+def angle_and_position_noise(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
+                             joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The noise of ``joints`` (n,) (each aimed at one descendant) as their descendant sees
+    it, each (n,) in file units^2: through the observed angles (their variance in rad^2
+    times the lever^2, :func:`measurement_variance`), the same from the mean square (it
+    counts outliers), and in the descendant's observed position seen from the joint.
+    ``channels`` (F, 3 + 3J) degrees, gaps bridged; ``observed`` (F, J); ``positions``
+    (F, J, 3) by FK of the channels, file units, less any common offset."""
     children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
     n = len(joints)
     seen = np.repeat(observed[:, joints], 3, axis=1)                          # (F, 3n)
@@ -285,8 +278,52 @@ def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, pos
     heavy = measurement_variance(angles, seen, robust=False).reshape(n, 3).mean(axis=1) * lever2
     relative = (positions[:, children] - positions[:, joints]).reshape(len(positions), 3 * n)
     both = seen & np.repeat(observed[:, children], 3, axis=1)
-    position_noise = measurement_variance(relative, both).reshape(n, 3).mean(axis=1)
+    return angle_noise, heavy, measurement_variance(relative, both).reshape(n, 3).mean(axis=1)
+
+
+def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
+                       joints) -> np.ndarray:
+    """Which of ``joints`` (n,) (each aimed at one descendant) are better told by their
+    observed angles than by the observed positions, (n,) bool: the angles' noise, as the
+    moved descendant sees it, is below the noise of the descendant's position seen from
+    the joint, and the angles carry no outliers (the smoother would pass them;
+    :data:`OUTLIER_VARIANCE_RATIO`). Noise in the angles (as inertial capture has)
+    favours the angles: the relative position carries the noise of every joint above;
+    noise on the positions (markers) does not. Arguments and measures:
+    :func:`angle_and_position_noise`."""
+    joints = np.asarray(joints, int)
+    if not joints.size:
+        return np.zeros(0, bool)
+    angle_noise, heavy, position_noise = angle_and_position_noise(skeleton, channels, observed, positions, joints)
     return (angle_noise < position_noise) & (heavy < OUTLIER_VARIANCE_RATIO * angle_noise)
+
+
+#: noise of less than this std (cm), as a joint's descendant sees it, is too little to
+#: tell a take's holes from the angles' smoother (:func:`angles_bridge_holes`)
+HOLE_NOISE_CM = 0.5
+
+
+def angles_bridge_holes(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
+                        short_lever_cm: float) -> bool:
+    """Whether the holes of a take are better bridged by the constant-velocity smoother of
+    their angles than filled from the joint positions around them: unless the angles
+    carry outliers (the smoother would pass them; :data:`OUTLIER_VARIANCE_RATIO`) or the
+    noise is in the positions (the descendants' position noise below the angles'), each
+    only where it exceeds :data:`HOLE_NOISE_CM`. So a clean take passes (its measures
+    are the motion's own accelerations, 0.02-0.07 cm), and so does angle noise, but not
+    position noise of more than 0.5 cm. Medians over the joints aimed at one descendant
+    beyond ``short_lever_cm`` and observed somewhere (measures and arguments:
+    :func:`angle_and_position_noise`)."""
+    short = short_lever_joints(skeleton, short_lever_cm)
+    joints = np.array([j for j in range(1, skeleton.n_joints) if len(skeleton.aimed_descendants[j]) == 1
+                       and j not in short and observed[:, j].any()], int)
+    if not joints.size:
+        return False
+    angle_noise, heavy, position_noise = (np.median(x) for x in
+                                          angle_and_position_noise(skeleton, channels, observed, positions, joints))
+    floor = (HOLE_NOISE_CM / skeleton.unit_cm) ** 2
+    outliers = heavy > max(OUTLIER_VARIANCE_RATIO * angle_noise, floor)
+    return not (outliers or floor < position_noise < angle_noise)
 
 
 def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float,

@@ -356,6 +356,22 @@ def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter
     assert angles_are_quieter(sk, bridged, obs.observed, positions, []).shape == (0,)
 
 
+@pytest.mark.parametrize("corruption, bridge", [("gaps:0.02", True), ("angular:0.5+gaps:0.02", True),
+                                                 ("spatial:0.2+gaps:0.02", True), ("spatial:1+gaps:0.02", False),
+                                                 ("angular:0.5+outliers:0.05", False), ("outliers:0.02", False)])
+def test_angles_bridge_holes_unless_the_noise_is_in_the_positions_or_has_outliers(corruption, bridge, clip):
+    """A take's holes are left to the angles' smoother when it is clean, when its noise
+    is in the angles or small, not under position noise of 1 cm, nor with outliers."""
+    from engines.identity import bridge_gaps
+    from engines.smoothing import angles_bridge_holes
+    from workbench.corruption import parse_corruption
+
+    obs = parse_corruption(corruption).apply(clip, seed=0)
+    bridged = bridge_gaps(obs)
+    positions = obs.motion.with_channels(bridged).positions
+    assert angles_bridge_holes(clip.skeleton, bridged, obs.observed, positions, 5.0) is bridge
+
+
 @pytest.mark.parametrize("level", [0.1, 0.5, 0.9])
 def test_kalman_noise_estimate_on_mocap(level, clip):
     obs = Observation(noisy(clip, level, seed=2))

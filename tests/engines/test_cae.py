@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from workbench import metrics, registry
+from workbench.core.channels import hole_length
 from workbench.core.kinematics import forward_kinematics
 from workbench.core.motion import Observation, channel_mask, joint_angle_columns, position_unknown
 from workbench.corruption import parse_corruption
@@ -404,7 +405,23 @@ def test_short_holes_are_bridged_as_observed(test_clip):
     obs = parse_corruption("drop:0.5").apply(truth, seed=0)
     lerp = _gap_error("lerp", truth, obs)
     assert _gap_error("cae", truth, obs) < 0.9 * lerp  # linear bridges: 0.93
-    assert _gap_error("cae:short_hole_frames=0", truth, obs) > 2.5 * lerp
+    assert _gap_error("cae:short_hole_frames=0,partial_hole_frames=0", truth, obs) > 2.5 * lerp
+
+
+def test_partial_holes_are_bridged_where_the_noise_allows(test_clip):
+    """Holes of a few dozen frames in part of the body: the angles' smoother bridges them
+    better than the network fills them, on a clean take; under position noise (and
+    outliers) they are left to the network."""
+    truth = test_clip.slice(0, 300)
+    obs = parse_corruption("gaps:0.01,20").apply(truth, seed=0)
+    engine = registry.create("cae")
+    missing = ~obs.observed
+    assert (engine.bridged_holes(obs) == missing & (hole_length(missing) <= 60)).all()
+    assert (hole_length(missing)[missing] > 6).mean() > 0.5
+    assert _gap_error("cae", truth, obs) < 0.8 * _gap_error("cae:partial_hole_frames=0", truth, obs)
+    noisy = parse_corruption("spatial:1+gaps:0.01,20").apply(truth, seed=0)
+    missing = ~noisy.observed
+    assert (engine.bridged_holes(noisy) == missing & (hole_length(missing) <= 6)).all()
 
 
 def test_short_gaps_blend_in_the_smoothers_fill(test_clip):
