@@ -76,11 +76,11 @@ Cleaning a take (Observation -> Motion):
    both ends); the image on that trajectory gives the raw network positions
    (diagnostic ``raw_positions``, (F, J, 3), file units). With ``anchor`` the observed
    floor points and headings are first smoothed (:func:`anchored_trajectory`; across a
-   gap inside the take the floor path is then the mean of the integrated one and the
-   smoother's fill) and the image is built on that track: the image is root-relative,
-   so the root's noise would otherwise enter every joint's rows and the result would be
-   put back on the noisy track (test split, ``spatial:1``: 1.30 -> 0.69 cm, the root 1.31 -> 0.51 cm off;
-   no corruption: 0.017 -> 0.019 cm).
+   gap inside the take the floor path is then mostly the smoother's fill) and the image
+   is built on that track: the image is root-relative, so the root's noise would
+   otherwise enter every joint's rows and the result would be put back on the noisy
+   track (test split, ``spatial:1``: 1.30 -> 0.69 cm, the root 1.31 -> 0.51 cm off; no
+   corruption: 0.017 -> 0.019 cm).
 4. IK with the skeleton's bone lengths turns them into angles (twist about single-child
    bones and the leaves' rotations from the bridged observation, with ``anchor``
    smoothed; below), so the result is a normal Motion. Before IK
@@ -188,6 +188,15 @@ INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "angle_lever_cm
 VIEWS = ((False, False), (True, False), (False, True), (True, True))
 
 Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
+#: with ``anchor``, the share of the constant-velocity smoother's fill in the root's floor
+#: path across a gap inside the take, the rest the network's integrated path. The root
+#: off in the gap's frames, cm, network's path only / 0.5 / 0.75 / the fill only, test
+#: split, 5 seeds: 15-frame gap 0.50 / 0.36 / 0.31 / 0.29, 30 frames 1.41 / 1.16 / 1.10 /
+#: 1.08, 60 frames 3.30 / 2.97 / 2.97 / 3.09, 120 frames 7.78 / 6.07 / 5.52 / 5.35;
+#: validation (subjects 05/06 held out, 3 seeds): 0.29 / 0.25 / 0.25 / 0.27, 1.02 / 0.80 /
+#: 0.74 / 0.72, 2.79 / 2.16 / 1.95 / 1.84, 5.14 / 3.97 / 3.67 / 3.65. 0.75 is at or below
+#: 0.5 at every length; the fill alone is not, and leaves the network's steps unused
+SMOOTHER_PATH_SHARE = 0.75
 
 
 @dataclass(frozen=True)
@@ -444,8 +453,9 @@ class ConvAutoencoderEngine(Engine):
         net_out = self.complete(image, mask, mirror, self.params.views)
         out = self.low_pass(net_out)
         path, theta = trajectory(out, known[:, 0], ground, theta)
-        if self.params.anchor:  # across a gap inside the take: the mean with the smoother's path
-            ground = np.where(np.isinf(hole_length(~known[:, :1])), path, 0.5 * (path + ground))
+        if self.params.anchor:  # across a gap inside the take: mostly the smoother's path
+            share = SMOOTHER_PATH_SHARE
+            ground = np.where(np.isinf(hole_length(~known[:, :1])), path, (1.0 - share) * path + share * ground)
         else:
             ground = path
         exact = mask.copy() if self.params.keep_observed else np.zeros_like(mask)
@@ -572,10 +582,8 @@ def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.nd
     it estimates from them, and its fill where the root is unknown. The image is
     root-relative, so a noisy root would otherwise shake the whole body: every joint's
     rows would carry the root's noise, and the decoded pose would be put back on the
-    noisy track. Across a gap inside the take the floor path is the mean of this fill
-    and the network's (test split, 5 seeds, the root off in cm: 60-frame gap 1.02 ->
-    0.91, 120 frames 5.02 -> 3.76; validation 0.29 -> 0.22, 0.83 -> 0.65; the fill alone
-    does better on 120 frames, worse on 60, and varies more from take to take)."""
+    noisy track. Across a gap inside the take the floor path is
+    :data:`SMOOTHER_PATH_SHARE` of this fill and the rest the network's."""
     Y = np.column_stack([ground[:, 0], ground[:, 2], np.unwrap(theta)])
     S = smooth_and_fill(Y, np.repeat(root_known[:, None], 3, axis=1))
     smoothed = ground.copy()

@@ -439,9 +439,9 @@ def _gap_error(spec: str, truth, obs) -> float:
 
 
 def test_the_root_path_across_a_long_gap_leans_on_the_smoother(clips):
-    """Across a gap inside the take the floor path is the mean of the network's integrated
-    velocities and the constant-velocity smoother's fill; on a jog the network's path
-    alone drifts further (held-out jog 16_35, 120-frame gaps, 4 seeds)."""
+    """Across a gap inside the take the floor path is mostly the constant-velocity
+    smoother's fill, a quarter the network's integrated velocities; on a jog the
+    network's path alone drifts further (held-out jog 16_35, 120-frame gaps, 4 seeds)."""
     jog = next(c for c in clips if c.id == "cmu/jog/16_35").load()
 
     def root_error(spec):
@@ -453,7 +453,7 @@ def test_the_root_path_across_a_long_gap_leans_on_the_smoother(clips):
             errors.append(np.linalg.norm((out.root_positions - jog.root_positions)[gap], axis=1).mean())
         return np.mean(errors)
 
-    assert root_error("cae") < 0.85 * root_error("cae:anchor=false")
+    assert root_error("cae") < 0.72 * root_error("cae:anchor=false")  # 0.70; an even mean: 0.74
 
 
 def test_view_averages_are_symmetric(trained, test_clip):
