@@ -2,7 +2,8 @@
 variances: the ``kalman`` engine's numerics, shared with ``mssa`` (its smoothness prior)
 and the motion-image autoencoders (their anchor to the observation); and, built on
 them, what IK keeps of an observation for the engines that clean joint positions
-(:func:`ik_reference`: ``cae`` and its baselines, ``mssa``'s position mode).
+(:func:`ik_reference`: ``cae`` and its baselines, ``mssa``'s position mode) and which
+holes the smoother of the angles bridges best (:func:`angles_bridge_holes`: ``cae``).
 
 The model, per channel, in frames (``dt = 1``)::
 
@@ -298,8 +299,9 @@ def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, pos
     return (angle_noise < position_noise) & (heavy < OUTLIER_VARIANCE_RATIO * angle_noise)
 
 
-#: noise of less than this std (cm), as a joint's descendant sees it, is too little to
-#: tell a take's holes from the angles' smoother (:func:`angles_bridge_holes`)
+#: outliers or position noise below this std (cm), as a joint's descendant sees them,
+#: still leave a take's holes to the angles' smoother (:func:`angles_bridge_holes`; under
+#: ``spatial`` noise ``cae``'s errors cross between 0.4 and 0.5 cm)
 HOLE_NOISE_CM = 0.5
 
 

@@ -435,15 +435,15 @@ class ConvAutoencoderEngine(Engine):
         skeleton = observation.skeleton
         self.check_skeleton(skeleton)
         layout = self.layout_
-        short = self.bridged_holes(observation)
-        bridged = fill_holes_smoothly(bridge_gaps(observation), channel_mask(observation.observed),
-                                      channel_mask(short))
+        linear = bridge_gaps(observation)
+        holes = self.bridged_holes(observation, linear)
+        bridged = fill_holes_smoothly(linear, channel_mask(observation.observed), channel_mask(holes))
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
         ref_local = local_rotations(skeleton, ref)
         P, R = forward_kinematics(skeleton, bridged[:, :3], ref, local=ref_local)
         theta = heading(R[:, 0])
         ground = P[:, 0] * np.array([1.0, 0.0, 1.0])
-        observed = observation.observed | short
+        observed = observation.observed | holes
         observed[:, self.constant_] = True
         known = ~position_unknown(observed, layout.parents)
         if self.params.anchor:
@@ -479,18 +479,18 @@ class ConvAutoencoderEngine(Engine):
             channels[given] = observation.motion.channels[given]
         return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw})
 
-    def bridged_holes(self, observation: Observation) -> np.ndarray:
+    def bridged_holes(self, observation: Observation, channels: np.ndarray) -> np.ndarray:
         """The holes (F, J) that count as observed, bridged by the constant-velocity
         smoother of their angles: those of at most ``short_hole_frames``, and those of at
         most ``partial_hole_frames`` in frames where the root is observed, in takes whose
-        noise lets the angles bridge them (:func:`engines.smoothing.angles_bridge_holes`)."""
+        noise lets the angles bridge them (:func:`engines.smoothing.angles_bridge_holes`).
+        ``channels`` (F, 3 + 3J): the observation's, gaps bridged (:func:`bridge_gaps`)."""
         p = self.params
         missing = ~observation.observed
         length = hole_length(missing)
         holes = missing & (length <= p.short_hole_frames)
         partial = missing & (length <= p.partial_hole_frames) & observation.observed[:, :1] & ~holes
         if partial.any():
-            channels = bridge_gaps(observation)
             positions, _ = forward_kinematics(observation.skeleton, channels[:, :3],
                                               channels[:, 3:].reshape(observation.n_frames, -1, 3))
             if angles_bridge_holes(observation.skeleton, channels, observation.observed, positions, p.short_lever_cm):

@@ -18,6 +18,7 @@ from workbench.engine import EngineError, NotFittedError
 from engines.cae import CAE, Holden
 from engines.cae.representation import (Layout, decode, encode, heading, image_mask, integrate,
                                         mirror_rows, pad_time, reverse_time)
+from engines.identity import bridge_gaps
 
 torch.set_num_threads(1)
 NAMES = ("cae", "cae-vanilla", "holden")
@@ -416,12 +417,12 @@ def test_partial_holes_are_bridged_where_the_noise_allows(test_clip):
     obs = parse_corruption("gaps:0.01,20").apply(truth, seed=0)
     engine = registry.create("cae")
     missing = ~obs.observed
-    assert (engine.bridged_holes(obs) == missing & (hole_length(missing) <= 60)).all()
+    assert (engine.bridged_holes(obs, bridge_gaps(obs)) == missing & (hole_length(missing) <= 60)).all()
     assert (hole_length(missing)[missing] > 6).mean() > 0.5
     assert _gap_error("cae", truth, obs) < 0.8 * _gap_error("cae:partial_hole_frames=0", truth, obs)
     noisy = parse_corruption("spatial:1+gaps:0.01,20").apply(truth, seed=0)
     missing = ~noisy.observed
-    assert (engine.bridged_holes(noisy) == missing & (hole_length(missing) <= 6)).all()
+    assert (engine.bridged_holes(noisy, bridge_gaps(noisy)) == missing & (hole_length(missing) <= 6)).all()
 
 
 def test_short_gaps_blend_in_the_smoothers_fill(test_clip):
