@@ -224,35 +224,23 @@ def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return cv_smooth(bridged, observed, *estimate_noise(bridged, observed))
 
 
-def fill_holes_smoothly(Y: np.ndarray, observed: np.ndarray, holes: np.ndarray) -> np.ndarray:
-    """(F, D) ``Y`` (gaps bridged, e.g. linearly) with its ``holes`` (F, D), missing
-    entries of ``observed`` (F, D), refilled with the path :func:`smooth_and_fill` takes
-    across them; every other entry as it is. At the noise it estimates from the
-    channel's samples, that path is a cubic spline through the samples around a hole on
-    a clean take (the smoother of a clean channel interpolates) and a smoothing spline on
-    a noisy one, where a line would join two noisy samples."""
-    cols = np.flatnonzero(holes.any(axis=0))
-    if not cols.size:
-        return Y
-    out = np.array(Y, dtype=float)
-    fill = smooth_and_fill(out[:, cols], observed[:, cols])
-    out[:, cols] = np.where(holes[:, cols], fill, out[:, cols])
-    return out
-
-
 def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed
     ends)."""
     return interpolate_gaps(smooth_and_fill(Y, observed), observed)
 
 
-def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.ndarray) -> np.ndarray:
+def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.ndarray,
+                        smoothed: np.ndarray | None = None) -> np.ndarray:
     """A copy of the channel matrix ``channels`` (F, 3 + 3J, gaps bridged) with the angles
     of ``joints`` smoothed by :func:`smooth_observed` where the joints are ``observed``
-    (F, J) and bridged linearly across their holes."""
+    (F, J) and bridged linearly across their holes. ``smoothed``: the channels'
+    :func:`smooth_and_fill` (F, 3 + 3J), when the caller has it."""
     out = np.array(channels, float)
     cols = joint_angle_columns(joints)
-    out[:, cols] = smooth_observed(out[:, cols], channel_mask(observed)[:, cols])
+    mask = channel_mask(observed)[:, cols]
+    out[:, cols] = interpolate_gaps(smooth_and_fill(out[:, cols], mask) if smoothed is None else smoothed[:, cols],
+                                    mask)
     return out
 
 
@@ -329,7 +317,7 @@ def angles_bridge_holes(skeleton, channels: np.ndarray, observed: np.ndarray, po
 
 
 def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float,
-                 angle_lever_cm: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 angle_lever_cm: float, smoothed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What IK (:func:`workbench.core.kinematics.inverse_kinematics`) keeps of an
     observation when an engine has cleaned its joint positions: the reference angles
     (F, J, 3) degrees, every joint's observed angles smoothed by
@@ -341,9 +329,11 @@ def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions
     in takes where their angles are quieter than the positions (:func:`angles_are_quieter`).
     ``channels`` (F, 3 + 3J) with gaps bridged, ``observed`` (F, J), ``positions``
     (F, J, 3) by FK of the channels (only differences between joints are used, so any
-    common offset, e.g. the root's, may be taken off)."""
+    common offset, e.g. the root's, may be taken off); ``smoothed``: the channels'
+    :func:`smooth_and_fill`, when the caller has it."""
     short = short_lever_joints(skeleton, short_lever_cm, observed)
-    reference = smooth_joint_angles(channels, observed, angle_joints(skeleton))[:, 3:].reshape(positions.shape)
+    reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed)
+    reference = reference[:, 3:].reshape(positions.shape)
     lever = np.array([j for j in short_lever_joints(skeleton, angle_lever_cm, observed)
                       if j not in short and len(skeleton.aimed_descendants[j]) == 1], int)
     quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever)]

@@ -14,7 +14,7 @@ Cleaning a take (Observation -> Motion):
    drop-outs would otherwise hide most of the body, a position being unknown wherever
    any ancestor's angles are (``drop:0.5``: cae 1.65 -> 0.29 cm, lerp 0.25). These short
    holes are bridged by the constant-velocity smoother's path
-   (:func:`engines.smoothing.fill_holes_smoothly`: a cubic spline through a clean take,
+   (:func:`engines.smoothing.smooth_and_fill`: a cubic spline through a clean take,
    a smoothing spline through a noisy one), the longer ones linearly. Test split, 5
    seeds, gap_mpjpe_cm, linear -> smoother: ``drop:0.3`` 0.133 -> 0.113, ``drop:0.5``
    0.265 -> 0.226 (spline 0.108 and 0.190: through clean samples a spline is best, but
@@ -176,8 +176,8 @@ from workbench.engine import CleanResult, Engine, EngineError
 from ..blas import one_blas_thread
 from ..gaussian import normalized_gaussian
 from ..identity import bridge_gaps, rewrap_angles
-from ..smoothing import (angles_bridge_holes, cv_smooth, fill_holes_smoothly, ik_reference, measurement_variance,
-                         smooth_and_fill, smoothing_ratio)
+from ..smoothing import (angles_bridge_holes, cv_smooth, ik_reference, measurement_variance, smooth_and_fill,
+                         smoothing_ratio)
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, reverse_time, trajectory, turn_y, wrap)
 
@@ -437,7 +437,10 @@ class ConvAutoencoderEngine(Engine):
         layout = self.layout_
         linear = bridge_gaps(observation)
         holes = self.bridged_holes(observation, linear)
-        bridged = fill_holes_smoothly(linear, channel_mask(observation.observed), channel_mask(holes))
+        seen, bridge = channel_mask(observation.observed), channel_mask(holes)
+        # smoothed once: the holes' bridges and (with anchor) the IK reference
+        smoothed = smooth_and_fill(linear, seen) if self.params.anchor or holes.any() else None
+        bridged = np.where(bridge, smoothed, linear) if holes.any() else linear
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
         ref_local = local_rotations(skeleton, ref)
         P, R = forward_kinematics(skeleton, bridged[:, :3], ref, local=ref_local)
@@ -470,7 +473,7 @@ class ConvAutoencoderEngine(Engine):
             if self.params.anchor and self.params.hole_blend_frames:
                 out = self.blend_short_holes(out, mask)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
-        short, frames, ref, ref_local = self._ik_reference(observation, bridged, P, ref, ref_local)
+        short, frames, ref, ref_local = self._ik_reference(observation, bridged, smoothed, P, ref, ref_local)
         root, angles = inverse_kinematics(skeleton, target, ref, reference_local=ref_local, reference_joints=short,
                                           reference_frames=frames)
         channels = rewrap_angles(np.concatenate([root, angles.reshape(observation.n_frames, -1)], axis=1), observation)
@@ -497,17 +500,20 @@ class ConvAutoencoderEngine(Engine):
                 holes |= partial
         return holes
 
-    def _ik_reference(self, observation: Observation, bridged: np.ndarray, positions: np.ndarray, ref: np.ndarray,
+    def _ik_reference(self, observation: Observation, bridged: np.ndarray, smoothed: np.ndarray | None,
+                      positions: np.ndarray, ref: np.ndarray,
                       ref_local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """What IK keeps of the observation: with ``anchor``
         :func:`engines.smoothing.ik_reference` (its joints, frames and smoothed reference
-        angles, with their local rotations); without it the bridged observation's
+        angles, with their local rotations; ``smoothed``: the channels'
+        :func:`engines.smoothing.smooth_and_fill`); without it the bridged observation's
         reference angles and local rotations, and the short levers in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
         p = self.params
         if not p.anchor:
             return short_lever_joints(skeleton, p.short_lever_cm, observed), np.zeros(observed.shape, bool), ref, ref_local
-        ref, short, frames = ik_reference(skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm)
+        ref, short, frames = ik_reference(skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm,
+                                          smoothed)
         return short, frames, ref, local_rotations(skeleton, ref)
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
