@@ -67,8 +67,12 @@ def test_params_from_spec_and_spec_round_trip():
     assert registry.create("doubler").spec == "doubler"
     with pytest.raises(EngineError, match="true or false"):
         registry.create("doubler:flag=maybe")
-    with pytest.raises(EngineError, match="doubler"):
+    with pytest.raises(EngineError, match="doubler': gain must be a number, got 'abc'"):
         registry.create("doubler:gain=abc")
+    with pytest.raises(EngineError, match="'gaussian': sigma_ms must be a number, got 'x'"):
+        registry.create("gaussian:sigma_ms=x")
+    with pytest.raises(EngineError, match="'cae': views must be a whole number, got '2.5'"):
+        registry.create("cae:views=2.5", pretrained=False)
 
 
 def test_import_path_specs():

@@ -84,8 +84,14 @@ def _coerce(value: str, kind: typing.Any, name: str) -> typing.Any:
         if low in ("0", "false", "no", "off"):
             return False
         raise ValueError(f"{name} must be true or false, got {value!r}")
-    if kind in (int, float, str):
-        return kind(value)
+    if kind is str:
+        return value
+    if kind in (int, float):
+        try:
+            return kind(value)
+        except ValueError:
+            what = "a whole number" if kind is int else "a number"
+            raise ValueError(f"{name} must be {what}, got {value!r}") from None
     raise ValueError(f"{name}: cannot set a parameter of type {kind} from text")
 
 
