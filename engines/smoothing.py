@@ -250,24 +250,34 @@ def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.n
 OUTLIER_VARIANCE_RATIO = 3.0
 
 
+def angle_noise(skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray,
+                robust: bool = True) -> np.ndarray:
+    """The noise of the observed angles of ``joints`` (n,) (each aimed at one descendant)
+    as the descendant sees it, (n,) in file units^2: their variance in rad^2
+    (:func:`measurement_variance`; ``robust`` False: the mean square, which counts
+    outliers) times the lever^2. ``channels`` (F, 3 + 3J) degrees, gaps bridged;
+    ``observed`` (F, J)."""
+    children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
+    seen = np.repeat(observed[:, joints], 3, axis=1)                          # (F, 3n)
+    lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[children] ** 2, axis=1)
+    variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, robust)
+    return variance.reshape(len(joints), 3).mean(axis=1) * lever2
+
+
 def angle_and_position_noise(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
                              joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The noise of ``joints`` (n,) (each aimed at one descendant) as their descendant sees
-    it, each (n,) in file units^2: through the observed angles (their variance in rad^2
-    times the lever^2, :func:`measurement_variance`), the same from the mean square (it
-    counts outliers), and in the descendant's observed position seen from the joint.
-    ``channels`` (F, 3 + 3J) degrees, gaps bridged; ``observed`` (F, J); ``positions``
-    (F, J, 3) by FK of the channels, file units, less any common offset."""
+    it, each (n,) in file units^2: through the observed angles (:func:`angle_noise`),
+    the same from the mean square (it counts outliers), and in the descendant's observed
+    position seen from the joint. ``channels`` (F, 3 + 3J) degrees, gaps bridged;
+    ``observed`` (F, J); ``positions`` (F, J, 3) by FK of the channels, file units, less
+    any common offset."""
     children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
     n = len(joints)
-    seen = np.repeat(observed[:, joints], 3, axis=1)                          # (F, 3n)
-    angles = channels[:, joint_angle_columns(joints)]
-    lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[children] ** 2, axis=1)
-    angle_noise = measurement_variance(angles, seen).reshape(n, 3).mean(axis=1) * lever2
-    heavy = measurement_variance(angles, seen, robust=False).reshape(n, 3).mean(axis=1) * lever2
     relative = (positions[:, children] - positions[:, joints]).reshape(len(positions), 3 * n)
-    both = seen & np.repeat(observed[:, children], 3, axis=1)
-    return angle_noise, heavy, measurement_variance(relative, both).reshape(n, 3).mean(axis=1)
+    both = np.repeat(observed[:, joints] & observed[:, children], 3, axis=1)
+    return (angle_noise(skeleton, channels, observed, joints), angle_noise(skeleton, channels, observed, joints, False),
+            measurement_variance(relative, both).reshape(n, 3).mean(axis=1))
 
 
 def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
@@ -283,14 +293,23 @@ def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, pos
     joints = np.asarray(joints, int)
     if not joints.size:
         return np.zeros(0, bool)
-    angle_noise, heavy, position_noise = angle_and_position_noise(skeleton, channels, observed, positions, joints)
-    return (angle_noise < position_noise) & (heavy < OUTLIER_VARIANCE_RATIO * angle_noise)
+    angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints)
+    return (angle < position) & (heavy < OUTLIER_VARIANCE_RATIO * angle)
 
 
 #: outliers or position noise below this std (cm), as a joint's descendant sees them,
 #: still leave a take's holes to the angles' smoother (:func:`angles_bridge_holes`; under
-#: ``spatial`` noise ``cae``'s errors cross between 0.4 and 0.5 cm)
+#: ``spatial`` noise ``cae``'s errors cross between 0.4 and 0.5 cm); angles noisier than
+#: this are no longer quiet (:func:`angles_are_quiet`)
 HOLE_NOISE_CM = 0.5
+
+
+def _measured_joints(skeleton, observed: np.ndarray, short_lever_cm: float) -> np.ndarray:
+    """The joints whose noise tells a take's: aimed at one descendant beyond
+    ``short_lever_cm`` and observed somewhere."""
+    short = short_lever_joints(skeleton, short_lever_cm)
+    return np.array([j for j in range(1, skeleton.n_joints) if len(skeleton.aimed_descendants[j]) == 1
+                     and j not in short and observed[:, j].any()], int)
 
 
 def angles_bridge_holes(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
@@ -301,19 +320,31 @@ def angles_bridge_holes(skeleton, channels: np.ndarray, observed: np.ndarray, po
     noise is in the positions (the descendants' position noise below the angles'), each
     only where it exceeds :data:`HOLE_NOISE_CM`. So a clean take passes (its measures
     are the motion's own accelerations, 0.02-0.07 cm), and so does angle noise, but not
-    position noise of more than 0.5 cm. Medians over the joints aimed at one descendant
-    beyond ``short_lever_cm`` and observed somewhere (measures and arguments:
-    :func:`angle_and_position_noise`)."""
-    short = short_lever_joints(skeleton, short_lever_cm)
-    joints = np.array([j for j in range(1, skeleton.n_joints) if len(skeleton.aimed_descendants[j]) == 1
-                       and j not in short and observed[:, j].any()], int)
+    position noise of more than 0.5 cm. Medians over :func:`_measured_joints` (measures
+    and arguments: :func:`angle_and_position_noise`)."""
+    joints = _measured_joints(skeleton, observed, short_lever_cm)
     if not joints.size:
         return False
-    angle_noise, heavy, position_noise = (np.median(x) for x in
-                                          angle_and_position_noise(skeleton, channels, observed, positions, joints))
+    angle, heavy, position = (np.median(x) for x in
+                              angle_and_position_noise(skeleton, channels, observed, positions, joints))
     floor = (HOLE_NOISE_CM / skeleton.unit_cm) ** 2
-    outliers = heavy > max(OUTLIER_VARIANCE_RATIO * angle_noise, floor)
-    return not (outliers or floor < position_noise < angle_noise)
+    outliers = heavy > max(OUTLIER_VARIANCE_RATIO * angle, floor)
+    return not (outliers or floor < position < angle)
+
+
+def angles_are_quiet(skeleton, channels: np.ndarray, observed: np.ndarray, short_lever_cm: float = 5.0) -> bool:
+    """Whether a take's angles carry less noise than :data:`HOLE_NOISE_CM`, outliers
+    included (:func:`angle_noise` from the mean square), as a descendant sees it: the
+    median over :func:`_measured_joints` (``short_lever_cm``: CMU's hands and finger
+    bases left out). Test split: a clean take passes (0.02-0.08 cm, the motion's own
+    accelerations), and so do ``angular:0.1`` (0.09-0.26 cm) and ``spatial:0.2``
+    (0.36-0.42); ``spatial:0.3`` (0.54-0.63), most ``angular:0.5`` takes and outliers
+    do not. ``channels`` (F, 3 + 3J) degrees, gaps bridged; ``observed`` (F, J)."""
+    joints = _measured_joints(skeleton, observed, short_lever_cm)
+    if not joints.size:
+        return False
+    heavy = np.median(angle_noise(skeleton, channels, observed, joints, robust=False))
+    return bool(heavy < (HOLE_NOISE_CM / skeleton.unit_cm) ** 2)
 
 
 def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float,

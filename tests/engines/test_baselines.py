@@ -372,6 +372,18 @@ def test_angles_bridge_holes_unless_the_noise_is_in_the_positions_or_has_outlier
     assert angles_bridge_holes(clip.skeleton, bridged, obs.observed, positions, 5.0) is bridge
 
 
+@pytest.mark.parametrize("corruption, quiet", [("gaps:0.02", True), ("angular:0.1", True), ("spatial:0.2", True),
+                                                ("angular:0.9", False), ("spatial:1", False), ("outliers:0.01", False)])
+def test_angles_are_quiet_below_half_a_centimetre_of_noise(corruption, quiet, clip):
+    """Quiet: less than 0.5 cm of angle noise, outliers included, as the descendants see it."""
+    from engines.identity import bridge_gaps
+    from engines.smoothing import angles_are_quiet
+    from workbench.corruption import parse_corruption
+
+    obs = parse_corruption(corruption).apply(clip, seed=0)
+    assert angles_are_quiet(clip.skeleton, bridge_gaps(obs), obs.observed) is quiet
+
+
 @pytest.mark.parametrize("level", [0.1, 0.5, 0.9])
 def test_kalman_noise_estimate_on_mocap(level, clip):
     obs = Observation(noisy(clip, level, seed=2))
