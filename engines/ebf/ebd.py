@@ -56,7 +56,7 @@ from ..blas import one_blas_thread
 from ..identity import rewrap_angles
 from ..smoothing import angles_are_quiet, smooth_and_fill
 from .base import ARCH, TrainingParams, WindowEngine
-from .features import RADIUS
+from .features import RADIUS, FrameData
 
 #: gap models mixed in training
 GAP_MODELS = ("gaps:0.01", "gaps:0.002,60", "gaps:0.0005,240,480")
@@ -119,7 +119,7 @@ class EBD(WindowEngine):
         step = net(windows).to(values.dtype) * torch.as_tensor(self.norm_.angle_std, dtype=values.dtype)
         return centre + step, {}
 
-    def _bridge(self, observation: Observation, data) -> np.ndarray:
+    def _bridge(self, observation: Observation, data: FrameData) -> np.ndarray:
         """(F, C) the angle channels the network's fill takes over from: bridged linearly,
         or, in holes of at most ``smooth_hole_frames`` with samples on both sides, along
         the constant-velocity smoother's path where the take's angles are quiet
