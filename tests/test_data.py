@@ -38,6 +38,16 @@ def test_folder_of_bvh_files_without_manifest(tmp_path, data_root):
     assert [(c.id, c.category, c.split) for c in clips] == [("dance/x_01", "dance", "")]
 
 
+def test_linked_folders_are_followed(tmp_path, data_root):
+    (tmp_path / "takes").mkdir()
+    (tmp_path / "takes" / "kick").symlink_to(data_root / "cmu-daz" / "kick", target_is_directory=True)
+    (tmp_path / "takes" / "loop").symlink_to(tmp_path / "takes", target_is_directory=True)  # a cycle ends
+    assert find_data_root(tmp_path / "takes") == (tmp_path / "takes").resolve()
+    clips = catalogue(tmp_path / "takes")
+    assert clips and {c.category for c in clips} == {"kick"}
+    assert all(c.id.startswith("kick/") for c in clips)
+
+
 def test_data_root_order_and_errors(tmp_path, monkeypatch):
     monkeypatch.setenv("WORKBENCH_DATA", str(tmp_path / "missing"))
     with pytest.raises(DataNotFoundError, match="WORKBENCH_DATA points at"):
@@ -47,6 +57,10 @@ def test_data_root_order_and_errors(tmp_path, monkeypatch):
     monkeypatch.setenv("WORKBENCH_DATA", str(tmp_path / "d"))
     assert find_data_root() == (tmp_path / "d").resolve()
     assert find_data_root(tmp_path / "d") == (tmp_path / "d").resolve()
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.txt").write_text("x")
+    with pytest.raises(DataNotFoundError, match="--data points at .*empty, which holds no .bvh"):
+        find_data_root(tmp_path / "empty")  # not silently replaced by the next root
 
 
 def test_no_data_message_says_what_to_do(tmp_path, monkeypatch):

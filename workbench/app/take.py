@@ -16,12 +16,12 @@ from collections.abc import Mapping
 import numpy as np
 
 from ..core.motion import Motion, Observation
+from ..io import MOTION_SUFFIXES, read_motion
 from ..render.scene import skeleton_points
 
 DEFAULT_CLIP = "cmu/walk/35_31"
 DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
 DEFAULT_ENGINES = ("ebd>ebf", "cae", "mssa", "lerp>gaussian", "kalman")
-MOTION_SUFFIXES = (".bvh", ".amc")
 
 
 def describe(err: BaseException) -> str:
@@ -61,8 +61,6 @@ def load_motion(source: str) -> Motion:
     """A catalogue clip id (``cmu/walk/35_31``, T-pose frame dropped) or a BVH/AMC path."""
     path = Path(source).expanduser()
     if path.suffix.lower() in MOTION_SUFFIXES or path.exists():
-        from ..io import read_motion
-
         return read_motion(path).replace(name=path.stem)
     from ..data import find_clip
 

@@ -1,8 +1,8 @@
 """The clip catalogue: every clip under a data root, with its category, subject and split.
 
 A dataset folder with a ``MANIFEST.csv`` (columns file, category, subject, trial, ...)
-is read from it; any other folder of BVH files is catalogued by walking it, the
-category being the parent folder's name. Clip ids are ``dataset/relative/path`` without
+is read from it; any other folder of BVH or AMC files is catalogued by walking it
+(linked folders followed), the category being the parent folder's name. Clip ids are ``dataset/relative/path`` without
 the suffix, e.g. ``cmu/walk/02_01``.
 
 Reference frames: the cgspeed conversions put a T-pose (rest) frame in frame 0 that was
@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..core.motion import Motion
-from ..io import read_motion
-from .roots import find_data_root
+from ..io import MOTION_SUFFIXES, read_motion
+from .roots import files_under, find_data_root
 
 SPLITS_DIR = Path(__file__).resolve().parent / "splits"
 
@@ -100,7 +100,9 @@ def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
                     )
                 )
         return clips
-    for path in sorted(folder.rglob("*.bvh")):
+    for path in files_under(folder):
+        if path.suffix.lower() not in MOTION_SUFFIXES:
+            continue
         rel = path.relative_to(folder).as_posix()
         clips.append(
             Clip(

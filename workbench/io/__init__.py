@@ -6,6 +6,9 @@ from ..core.motion import Motion
 from .bvh import read_bvh, write_bvh
 from .errors import MotionFileError
 
+#: file suffixes :func:`read_motion` reads (compared lower-case)
+MOTION_SUFFIXES = (".bvh", ".amc")
+
 
 def read_motion(path: str | Path) -> Motion:
     """Read a BVH file, or a CMU AMC file (its ASF skeleton beside it)."""
@@ -17,4 +20,4 @@ def read_motion(path: str | Path) -> Motion:
     return read_bvh(path)
 
 
-__all__ = ["read_bvh", "write_bvh", "read_motion", "MotionFileError"]
+__all__ = ["read_bvh", "write_bvh", "read_motion", "MotionFileError", "MOTION_SUFFIXES"]
