@@ -115,3 +115,12 @@ def test_per_clip_marks_a_metric_no_seed_defines():
 def test_module_entry_point_runs():
     out = subprocess.run([sys.executable, "-m", "workbench", "engines"], capture_output=True, text=True)
     assert out.returncode == 0 and "identity" in out.stdout
+
+
+def test_a_reader_that_stops_early_gets_no_traceback():
+    """`workbench engines | head -1`: the pipe closes before the listing is written."""
+    proc = subprocess.Popen([sys.executable, "-m", "workbench", "engines"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    proc.stdout.close()  # before the child has imported anything, so every write fails
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 0 and "Traceback" not in err, err

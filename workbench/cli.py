@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -319,7 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
     sp.set_defaults(func=cmd_train)
 
-    from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
+    from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION, DEFAULT_ENGINES
 
     def take_opts(sp):
         sp.add_argument("clip", nargs="?", default=DEFAULT_CLIP,
@@ -328,7 +329,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})")
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default: "
-                        "the registered ones of ebd>ebf, cae, lerp>gaussian, kalman)")
+                        f"those of {', '.join(DEFAULT_ENGINES)} that load)")
 
     sp = sub.add_parser("gui", help="open the desktop app (also: workbench with no arguments)")
     take_opts(sp)
@@ -358,6 +359,9 @@ def main(argv: list[str] | None = None) -> int:
         msg = err.args[0] if isinstance(err, KeyError) and err.args else str(err)
         print(f"workbench {args.command}: error: {msg}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader stopped early (`workbench engines | head`): not an error of ours
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit's flush stays quiet
+        return 0
 
 
 if __name__ == "__main__":
