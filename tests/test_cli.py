@@ -124,3 +124,23 @@ def test_a_reader_that_stops_early_gets_no_traceback():
     proc.stdout.close()  # before the child has imported anything, so every write fails
     err = proc.stderr.read().decode()
     assert proc.wait() == 0 and "Traceback" not in err, err
+
+
+def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_root, capsys):
+    """The route the foreign-skeleton error names: train on takes of that skeleton into a
+    folder, clean with ``ENGINE:weights=FOLDER``; the committed weights stay untouched."""
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "kick").symlink_to(data_root / "cmu-daz" / "kick", target_is_directory=True)
+    take = data_root / "cmu-daz" / "jump" / "13_11.bvh"
+    assert main(["clean", str(take), "-o", str(tmp_path / "no.bvh"), "--engine", "mssa"]) == 2
+    err = capsys.readouterr().err
+    assert "mssa:weights=FOLDER" in err and not (tmp_path / "no.bvh").exists()
+    out = tmp_path / "mssa-daz"
+    assert main(["train", "mssa", "--data", str(takes), "--out", str(out)]) == 0
+    assert f"--engine 'mssa:weights={out}'" in capsys.readouterr().out
+    cleaned = tmp_path / "clean.bvh"
+    assert main(["clean", str(take), "-o", str(cleaned), "--engine", f"mssa:weights={out}"]) == 0
+    assert read_bvh(cleaned).skeleton.n_joints == 43
+    assert main(["train", f"mssa:weights={out}"]) == 2
+    assert "to train, leave it out" in capsys.readouterr().err

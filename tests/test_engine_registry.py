@@ -75,6 +75,23 @@ def test_params_from_spec_and_spec_round_trip():
         registry.create("cae:views=2.5", pretrained=False)
 
 
+def test_a_trained_engine_loads_the_weights_folder_its_spec_names(walk, tmp_path):
+    from engines.mssa import MSSA
+
+    committed = MSSA().default_weights_dir()
+    e = registry.create(f"mssa:prior_weight=2,weights={committed}")
+    assert e.weights_folder == committed and e.skeleton_signature_ == walk.skeleton.signature()
+    assert e.spec == f"mssa:prior_weight=2.0,weights={committed}"
+    assert registry.create(e.spec, pretrained=False).spec == e.spec
+    assert registry.create("mssa:weights=").weights_folder is None  # empty: the committed ones
+    with pytest.raises(EngineError, match="no weights manifest here"):
+        registry.create(f"mssa:weights={tmp_path}")
+    with pytest.raises(EngineError, match="these weights are for engine 'mssa', not 'cae'"):
+        registry.create(f"cae:weights={committed}")
+    with pytest.raises(EngineError, match="'gaussian' has no parameter 'weights'"):
+        registry.create(f"gaussian:weights={committed}")
+
+
 def test_import_path_specs():
     e = registry.create("engines.identity:Identity")
     assert e.info.name == "identity"

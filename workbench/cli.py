@@ -176,7 +176,7 @@ def cmd_bench(args) -> int:
 def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, find_data_root, select
-    from .engine import EngineError
+    from .engine import WEIGHTS_OPTION, EngineError
     from .evaluate import run_benchmark
 
     spec = args.engine
@@ -185,6 +185,9 @@ def cmd_train(args) -> int:
     engine = registry.create(spec, pretrained=False)
     if not engine.info.trainable:
         raise UserError(f"engine {engine.info.name!r} has nothing to train")
+    if engine.weights_folder is not None:
+        raise UserError(f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
+                        "(--out says where the new weights go)")
     root = find_data_root(args.data)
     clips = catalogue(root)
     train = select(clips, "train") or select(clips, None)
@@ -217,7 +220,8 @@ def cmd_train(args) -> int:
                                                   "minutes": round(minutes, 2)}, "validation": validation})
     except EngineError as err:
         raise UserError(str(err)) from None
-    print(f"trained in {minutes:.1f} min; saved {manifest}")
+    print(f"trained in {minutes:.1f} min; saved {manifest}; clean with it as "
+          f"--engine '{engine.spec}{',' if ':' in engine.spec else ':'}{WEIGHTS_OPTION}={out}'")
     if args.promote:
         import shutil
 

@@ -25,6 +25,8 @@ from .core.motion import Motion, Observation
 from .core.skeleton import Skeleton
 
 TASKS = frozenset({"denoise", "fill"})
+#: the spec option of trainable engines that names a folder of trained weights
+WEIGHTS_OPTION = "weights"
 SPACES = frozenset({"angles", "positions"})
 
 
@@ -103,6 +105,9 @@ class Engine:
     Params: ClassVar[type] = NoParams
     #: fitted skeleton layout signature (trainable engines set it in fit/load)
     skeleton_signature_: str | None = None
+    #: the folder that the spec option ``weights=DIR`` names, to load trained state from
+    #: instead of the committed weights (None: the committed ones)
+    weights_folder: Path | None = None
 
     def __init__(self, params: typing.Any = None) -> None:
         self.params = self.Params() if params is None else params
@@ -110,22 +115,28 @@ class Engine:
     # -- parameters -----------------------------------------------------------------
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> "Engine":
-        """Build from ``{"sigma_ms": "58"}``-style text options, with clear errors."""
+        """Build from ``{"sigma_ms": "58"}``-style text options, with clear errors. A
+        trainable engine also takes ``weights=DIR`` (see :attr:`weights_folder`)."""
         fields = {f.name: f for f in dataclasses.fields(cls.Params)}
         hints = typing.get_type_hints(cls.Params)
         values = {}
         for key, text in options.items():
+            if key == WEIGHTS_OPTION and cls.info.trainable:
+                continue
             if key not in fields:
-                valid = ", ".join(fields) or "none"
+                valid = ", ".join([*fields, WEIGHTS_OPTION] if cls.info.trainable else fields) or "none"
                 raise EngineError(f"engine {cls.info.name!r} has no parameter {key!r} (parameters: {valid})")
             try:
                 values[key] = _coerce(text, hints[key], key)
             except ValueError as err:
                 raise EngineError(f"engine {cls.info.name!r}: {err}") from None
         try:
-            return cls(cls.Params(**values))
+            engine = cls(cls.Params(**values))
         except (TypeError, ValueError) as err:
             raise EngineError(f"engine {cls.info.name!r}: {err}") from None
+        if options.get(WEIGHTS_OPTION) and cls.info.trainable:
+            engine.weights_folder = Path(options[WEIGHTS_OPTION]).expanduser()
+        return engine
 
     @property
     def spec(self) -> str:
@@ -136,6 +147,8 @@ class Engine:
             for f in dataclasses.fields(self.params)
             if getattr(self.params, f.name) != getattr(default, f.name)
         ]
+        if self.weights_folder is not None:
+            changed.append(f"{WEIGHTS_OPTION}={self.weights_folder}")
         return self.info.name + (":" + ",".join(changed) if changed else "")
 
     # -- the protocol ---------------------------------------------------------------
@@ -152,8 +165,9 @@ class Engine:
             raise EngineError(
                 f"engine {self.info.name!r} was trained for another skeleton "
                 f"({self.skeleton_description_}); this take has {skeleton.n_joints} joints "
-                f"rooted at {skeleton.names[0]!r}. Retrain it for this skeleton with "
-                f"`workbench train {self.info.name} --data DIR`."
+                f"rooted at {skeleton.names[0]!r}. Train it on takes of this skeleton "
+                f"(`workbench train {self.info.name} --data DIR --out FOLDER`) and clean with "
+                f"`{self.info.name}:{WEIGHTS_OPTION}=FOLDER`."
             )
 
     @property
@@ -210,7 +224,10 @@ class Engine:
         return Path(module.__file__).resolve().parent / "weights"
 
     def load_pretrained(self) -> "Engine":
-        """Load the committed weights when this engine is trainable and has some."""
+        """Load the weights of ``weights_folder`` when set, else the committed weights
+        when this engine is trainable and has some."""
+        if self.weights_folder is not None:
+            return self.load(self.weights_folder)
         if self.info.trainable and (self.default_weights_dir() / "manifest.json").exists():
             self.load(self.default_weights_dir())
         return self

@@ -5,7 +5,9 @@ built-ins are registered the same way in pyproject.toml), through :func:`registe
 named directly as ``"package.module:Class"``.
 
 Spec grammar: ``name`` or ``name:key=value,key=value``; a pipeline joins specs with
-``>`` (``lerp>gaussian:sigma_ms=58``): the first stage fills gaps, the next cleans.
+``>`` (``lerp>gaussian:sigma_ms=58``): the first stage fills gaps, the next cleans. A
+trainable engine also takes ``weights=DIR``: load its trained state from DIR instead of
+the committed weights.
 """
 
 from __future__ import annotations

@@ -300,9 +300,10 @@ class MSSA(Engine):
                         for space, names in keys.items()}
 
     def load_pretrained(self) -> "MSSA":
-        """Load the committed bases when they were fitted with this engine's window and
-        energy share (other settings need their own training); otherwise stay unfitted."""
+        """As the base class, but committed bases fitted with another window or energy
+        share leave the engine unfitted (those settings need their own training)."""
         path = self.default_weights_dir() / "manifest.json"
-        if path.exists() and self._fit_params_match(json.loads(path.read_text(encoding="utf-8"))):
-            self.load(self.default_weights_dir())
-        return self
+        if (self.weights_folder is None and path.exists()
+                and not self._fit_params_match(json.loads(path.read_text(encoding="utf-8")))):
+            return self
+        return super().load_pretrained()

@@ -288,3 +288,24 @@ def test_save_says_why_it_cannot_and_leaves_no_file(window, qtbot, tmp_path):
     assert not window.controls.engines.save.isEnabled()
     assert not s.save_current(str(tmp_path / "y.bvh"))
     assert not (tmp_path / "y.bvh").exists() and "nothing to save" in window.controls.log.item(0).text()
+
+
+def test_the_parameter_panel_keeps_a_trained_engines_weights_folder(window, qtbot):
+    from engines.mssa import MSSA
+
+    folder = MSSA().default_weights_dir()
+    spec = f"mssa:weights={folder}"
+    s, panel = window.session, window.controls.engines
+    s.set_specs(["identity", spec], spec)
+    settle(qtbot, window)
+    assert isinstance(s.runs[spec], EngineRun)
+    (name, fields), = panel.edits
+    assert name == "mssa" and fields["weights"].text() == str(folder)
+    fields["prior_weight"].setText("2")
+    panel._apply_params()
+    assert s.current == f"mssa:prior_weight=2.0,weights={folder}" and s.current in s.specs
+    settle(qtbot, window)
+    assert isinstance(s.runs[s.current], EngineRun)
+    panel.edits[0][1]["weights"].setText("")  # empty: back to the committed weights
+    panel._apply_params()
+    assert s.current == "mssa:prior_weight=2.0"

@@ -14,6 +14,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QFormLayout, Q
                                QLineEdit, QListWidget, QListWidgetItem, QPushButton, QSpinBox, QVBoxLayout, QWidget)
 
 from .. import registry
+from ..engine import WEIGHTS_OPTION
 from .take import DEFAULT_CORRUPTION, EngineRun
 
 SPEC_ROLE = Qt.UserRole
@@ -198,6 +199,10 @@ class EnginePanel(QGroupBox):
             return
         for stage in getattr(engine, "stages", [engine]):
             fields = {f.name: QLineEdit(str(getattr(stage.params, f.name))) for f in dataclasses.fields(stage.params)}
+            if stage.info.trainable:
+                fields[WEIGHTS_OPTION] = QLineEdit(str(stage.weights_folder or ""), placeholderText="default",
+                                                   toolTip="a folder that `workbench train --out` wrote; "
+                                                           "empty: the committed weights")
             self.edits.append((stage.info.name, fields))
             if not fields:
                 self.params.addRow(stage.info.name, QLabel("no parameters"))
