@@ -74,6 +74,15 @@ def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, da
     assert not (tmp_path / "o.bvh").exists()
 
 
+def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path, capsys):
+    js = tmp_path / "b.json"
+    assert main(["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--clips", "cmu-daz/kick/10_0*",
+                 "--json", str(js)]) == 0
+    assert "no train/test split; benchmarking all" in capsys.readouterr().err
+    clips = json.loads(js.read_text())["clips"]
+    assert clips and all(c.startswith("cmu-daz/kick/10_0") for c in clips)
+
+
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert main(["bench", "--engines", "identity,gaussian", "--corrupt", "angular:0.5", "--split", "test",

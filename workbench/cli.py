@@ -137,11 +137,14 @@ def _bench_clips(args):
     from .data import catalogue, find_data_root, select
 
     root = find_data_root(args.data)
-    clips = catalogue(root)
-    if args.data and not any(c.split for c in clips):
-        chosen = select(clips, None, pattern=args.clips)
+    # the team's data root holds two datasets: without --data or --clips, the CMU one
+    matched = select(catalogue(root), None, dataset=None if args.data or args.clips else "cmu", pattern=args.clips)
+    if any(c.split for c in matched):
+        chosen = select(matched, args.split)
     else:
-        chosen = select(clips, args.split, dataset=None if args.data else "cmu", pattern=args.clips)
+        chosen = matched
+        if matched and args.split != "all":
+            print(f"note: these clips have no train/test split; benchmarking all {len(matched)}", file=sys.stderr)
     if not chosen:
         raise UserError(f"no clips match split={args.split!r} clips={args.clips!r} under {root}")
     return [(c.id, c.load()) for c in chosen]
