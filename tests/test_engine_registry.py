@@ -92,6 +92,18 @@ def test_a_trained_engine_loads_the_weights_folder_its_spec_names(walk, tmp_path
         registry.create(f"gaussian:weights={committed}")
 
 
+def test_weights_bring_their_architecture_unless_the_spec_asks_for_another():
+    from engines.ebf import EBF
+
+    bias = EBF().default_weights_dir().parent / "ebf-bias"
+    assert registry.create(f"ebf:weights={bias}").params.bias is True  # taken from the weights
+    with pytest.raises(EngineError, match=r"trained with \{'lstm_units': 64\}, not \{'lstm_units': 32\}"):
+        registry.create(f"ebf:lstm_units=32,weights={bias}")
+    with pytest.raises(EngineError, match=r"trained with \{'base_width': 16\}, not \{'base_width': 8\}"):
+        registry.create("cae:base_width=8")  # was: the committed 16-wide network, silently
+    assert registry.create("cae:epochs=3").spec == "cae"  # training settings come with the weights
+
+
 def test_import_path_specs():
     e = registry.create("engines.identity:Identity")
     assert e.info.name == "identity"

@@ -27,6 +27,14 @@ from .core.skeleton import Skeleton
 TASKS = frozenset({"denoise", "fill"})
 #: the spec option of trainable engines that names a folder of trained weights
 WEIGHTS_OPTION = "weights"
+#: field metadata marking a parameter that shapes the trained network or its training
+#: data, so that a set of weights holds one value of it (:meth:`Engine.trained_architecture`)
+ARCHITECTURE = {"architecture": True}
+
+
+def architecture(params: typing.Any) -> dict[str, typing.Any]:
+    """The parameters of ``params`` marked :data:`ARCHITECTURE`, by name."""
+    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.metadata.get("architecture")}
 SPACES = frozenset({"angles", "positions"})
 
 
@@ -215,6 +223,20 @@ class Engine:
         self.load_state_arrays(arrays, manifest)
         self.skeleton_signature_ = manifest["skeleton_signature"]
         return self
+
+    def trained_architecture(self, manifest: Mapping) -> dict[str, typing.Any]:
+        """The architecture parameters that the weights of ``manifest`` were trained with
+        (one missing there, newer than the weights, at its default). Raises EngineError
+        where this engine's spec set one to another value than the weights'."""
+        default = self.Params()
+        saved = manifest.get("params") or {}
+        trained = {k: saved.get(k, value) for k, value in architecture(default).items()}
+        asked = {k: v for k, v in architecture(self.params).items() if v != getattr(default, k) and v != trained[k]}
+        if asked:
+            raise EngineError(f"engine {self.info.name!r}: these weights were trained with "
+                              f"{ {k: trained[k] for k in asked} }, not {asked}; train this variant first "
+                              f"(`workbench train SPEC --out FOLDER`, then add {WEIGHTS_OPTION}=FOLDER to the spec)")
+        return trained
 
     def default_weights_dir(self) -> Path:
         """``engines/<name>/weights`` beside the engine's module."""

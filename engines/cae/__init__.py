@@ -13,9 +13,9 @@ network differs (:mod:`.networks`). Committed weights live in ``weights/<name>/`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
-from workbench.engine import EngineInfo
+from workbench.engine import ARCHITECTURE, EngineInfo
 
 from .engine import ConvAutoencoderEngine, TrainingParams
 
@@ -28,8 +28,8 @@ class ImageParams(TrainingParams):
     """Encoder widths: ``base_width`` channels in the first unit, doubling per unit up
     to ``top_width``."""
 
-    base_width: int = 16
-    top_width: int = 192
+    base_width: int = field(default=16, metadata=ARCHITECTURE)
+    top_width: int = field(default=192, metadata=ARCHITECTURE)
 
 
 @dataclass(frozen=True)
@@ -53,8 +53,8 @@ class CAEParams(ImageParams):
 class HoldenParams(TrainingParams):
     """``hidden`` feature channels of the temporal convolution, ``kernel_frames`` wide (odd)."""
 
-    hidden: int = 256
-    kernel_frames: int = 25
+    hidden: int = field(default=256, metadata=ARCHITECTURE)
+    kernel_frames: int = field(default=25, metadata=ARCHITECTURE)
 
 
 class CAE(ConvAutoencoderEngine):

@@ -374,6 +374,7 @@ class ConvAutoencoderEngine(Engine):
 
         # older weights saw zeroed holes and ended on their last step's weights, and
         # recorded the view averaging of their day as two switches (now ``views``)
+        self.trained_architecture(manifest)  # widths asked for in the spec must be the weights'
         saved = {"input_fill": "zero", "ema_decay": 0.0, **manifest.get("params", {})}
         for legacy in ("mirror_average", "reverse_average"):
             saved.pop(legacy, None)

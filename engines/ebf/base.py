@@ -17,13 +17,10 @@ import numpy as np
 
 from workbench.core.channels import retime, unwrap_deg
 from workbench.core.motion import Motion, Observation
-from workbench.engine import Engine, EngineError
+from workbench.engine import Engine, EngineError, architecture
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
-#: field metadata marking parameters that change the trained network, its shape or its
-#: training data (and so the weights folder)
-ARCH = {"architecture": True}
 #: windows evaluated per forward pass at inference (bounds memory)
 INFERENCE_CHUNK = 4096
 
@@ -54,11 +51,6 @@ class TrainingParams:
             raise ValueError(f"time_scale_pct must be >= 0, got {self.time_scale_pct}")
         if not 0 <= self.dropout < 1:
             raise ValueError(f"dropout must be in [0, 1), got {self.dropout}")
-
-
-def architecture(params: Any) -> dict[str, Any]:
-    """The parameters marked ARCH, by name."""
-    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.metadata.get("architecture")}
 
 
 class WindowEngine(Engine):
@@ -108,12 +100,7 @@ class WindowEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from engines.torch_support import load_module_arrays
 
-        params = manifest.get("params") or {}
-        # an architecture parameter newer than the weights: they were trained with its default
-        saved = {k: params.get(k, default) for k, default in architecture(self.Params()).items()}
-        if saved != architecture(self.params):
-            raise EngineError(f"engine {self.info.name!r}: these weights were trained with {saved}, "
-                              f"not {architecture(self.params)}; train this variant first")
+        self.params = dataclasses.replace(self.params, **self.trained_architecture(manifest))
         self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float))
         net = self._build_net(self.norm_.mean.size - 3)
         load_module_arrays(net, arrays, "net.")

@@ -50,12 +50,12 @@ import numpy as np
 from workbench.core.channels import gap_distance, hole_length
 from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
 from workbench.corruption import parse_corruption
-from workbench.engine import CleanResult, EngineInfo
+from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
 
 from ..blas import one_blas_thread
 from ..identity import rewrap_angles
 from ..smoothing import angles_are_quiet, smooth_and_fill
-from .base import ARCH, TrainingParams, WindowEngine
+from .base import TrainingParams, WindowEngine
 from .features import RADIUS, FrameData
 
 #: gap models mixed in training
@@ -80,7 +80,7 @@ class EBD(WindowEngine):
     class Params(TrainingParams):
         epochs: int = 45
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 32)
-        lstm_units: int = field(default=32, metadata=ARCH)
+        lstm_units: int = field(default=32, metadata=ARCHITECTURE)
         #: frames over which the network's fill takes over from the linear one, from
         #: each gap edge (0: the network's fill everywhere); see the module docstring
         blend_frames: float = 40.0

@@ -45,11 +45,11 @@ import numpy as np
 
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
-from workbench.engine import CleanResult, EngineInfo
+from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
 
 from ..blas import one_blas_thread
 from ..identity import rewrap_angles
-from .base import ARCH, WindowEngine, TrainingParams
+from .base import WindowEngine, TrainingParams
 from .features import RADIUS
 from .root import clean_root
 
@@ -187,13 +187,13 @@ class EBF(FilterEngine):
     @dataclass(frozen=True)
     class Params(FilterParams):
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 126)
-        lstm_units: int = field(default=64, metadata=ARCH)
+        lstm_units: int = field(default=64, metadata=ARCHITECTURE)
         #: also predict and subtract a per-channel bias (for biased noise)
-        bias: bool = field(default=False, metadata=ARCH)
+        bias: bool = field(default=False, metadata=ARCHITECTURE)
         #: free filter shapes (31 softmax weights per channel) instead of Gaussians
-        free: bool = field(default=False, metadata=ARCH)
+        free: bool = field(default=False, metadata=ARCHITECTURE)
         #: also trained on joint-position noise (for marker-based takes; our addition)
-        positions: bool = field(default=False, metadata=ARCH)
+        positions: bool = field(default=False, metadata=ARCHITECTURE)
 
         def __post_init__(self) -> None:
             super().__post_init__()
@@ -217,7 +217,7 @@ class BF(FilterEngine):
     @dataclass(frozen=True)
     class Params(FilterParams):
         #: LSTM units per direction in each of the two B-LSTM layers
-        lstm_units: int = field(default=64, metadata=ARCH)
+        lstm_units: int = field(default=64, metadata=ARCHITECTURE)
 
     info = EngineInfo(
         name="bf",

@@ -276,8 +276,9 @@ def test_tiny_fit_learns_and_round_trips_through_save_and_load(tiny, tmp_path):
     engine.save(tmp_path)
     again = EBF(EBF.Params(epochs=1, lstm_units=8)).load(tmp_path)
     assert np.array_equal(again.clean(obs).motion.channels, before)
+    assert np.array_equal(EBF().load(tmp_path).clean(obs).motion.channels, before)  # its size comes along
     with pytest.raises(EngineError, match="lstm_units"):
-        EBF().load(tmp_path)  # a network of another size
+        EBF(EBF.Params(lstm_units=32)).load(tmp_path)  # a network of another size than asked for
 
 
 def test_two_thread_fits_are_repeatable_and_restore_the_thread_count(tiny, monkeypatch):
