@@ -153,3 +153,21 @@ def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_ro
     assert read_bvh(cleaned).skeleton.n_joints == 43
     assert main(["train", f"mssa:weights={out}"]) == 2
     assert "to train, leave it out" in capsys.readouterr().err
+
+
+def test_clean_writes_a_t_pose_frame_0_back_untouched(tmp_path, data_root, capsys):
+    from workbench import registry
+    from workbench.core.motion import Observation
+
+    src = data_root / "cmu" / "walk" / "02_01.bvh"  # cgspeed: frame 0 is the T-pose
+    raw = read_bvh(src)
+    out = tmp_path / "clean.bvh"
+    assert main(["clean", str(src), "-o", str(out), "--engine", "gaussian"]) == 0
+    assert "T-pose reference frame: written back" in capsys.readouterr().err
+    cleaned = read_bvh(out)
+    assert cleaned.n_frames == raw.n_frames
+    assert np.allclose(cleaned.channels[0], raw.channels[0], atol=1e-5)
+    alone = registry.create("gaussian").clean(Observation(raw.slice(1))).motion
+    assert np.allclose(cleaned.channels[1:], alone.channels, atol=1e-5)  # the T-pose did not leak in
+    assert main(["clean", str(src), "-o", str(out), "--engine", "gaussian", "--keep-reference"]) == 0
+    assert not np.allclose(read_bvh(out).channels[1], alone.channels[0], atol=1e-3)

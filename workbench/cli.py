@@ -111,6 +111,7 @@ def cmd_corrupt(args) -> int:
 def cmd_clean(args) -> int:
     from . import registry
     from .core.motion import Observation
+    from .data import has_reference_frame
     from .io import write_bvh
     from .io.mask import read_mask
 
@@ -121,12 +122,21 @@ def cmd_clean(args) -> int:
         observed = read_mask(mask_path, motion.skeleton, motion.n_frames)
         if not args.mask:
             print(f"note: using the mask sidecar {mask_path}", file=sys.stderr)
+    reference = None
+    if has_reference_frame(motion) and not args.keep_reference:
+        reference, motion = motion.channels[:1], motion.slice(1)
+        observed = None if observed is None else observed[1:]
+        print("note: frame 0 is a T-pose reference frame: written back as it is, not cleaned "
+              "(--keep-reference cleans it with the motion)", file=sys.stderr)
     obs = Observation(motion, observed)
     engine = registry.create(args.engine)
     t0 = time.perf_counter()
     result = engine.clean(obs)
     dt = time.perf_counter() - t0
-    write_bvh(args.output, result.motion)
+    cleaned = result.motion
+    if reference is not None:
+        cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
+    write_bvh(args.output, cleaned)
     print(f"wrote {args.output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
           f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled")
     return 0
@@ -303,6 +313,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("-o", "--output", required=True)
     sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
+    sp.add_argument("--keep-reference", action="store_true",
+                    help="clean a T-pose frame 0 with the motion (default: write it back untouched)")
     sp.set_defaults(func=cmd_clean)
 
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
