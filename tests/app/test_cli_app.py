@@ -8,6 +8,8 @@ import os
 import subprocess
 import sys
 
+import numpy as np
+
 from workbench import cli
 from workbench.app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
 
@@ -87,3 +89,13 @@ def test_the_report_adds_the_outlier_weights_when_an_engine_reports_them(take):
     only_weights = titles(["test-weights"])
     assert "data weights" in only_weights and "filter widths" not in only_weights
     assert "data weights" not in titles(["test-widths"])
+
+
+def test_a_take_opened_by_path_drops_a_t_pose_frame_0_as_the_catalogue_does(data_root):
+    from workbench.app.take import load_motion
+    from workbench.io import read_bvh
+
+    path = data_root / "cmu" / "walk" / "35_31.bvh"
+    by_path, by_id = load_motion(str(path)), load_motion("cmu/walk/35_31")
+    assert by_path.n_frames == read_bvh(path).n_frames - 1 == by_id.n_frames
+    assert np.array_equal(by_path.channels, by_id.channels)
