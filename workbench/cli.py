@@ -63,7 +63,10 @@ def cmd_data(args) -> int:
 
 
 def cmd_engines(args) -> int:
+    import dataclasses
+
     from . import registry
+    from .engine import WEIGHTS_OPTION
 
     for name in registry.available():
         try:
@@ -72,9 +75,9 @@ def cmd_engines(args) -> int:
             print(f"{name:16s} (failed to load: {err})")
             continue
         info = cls.info
-        import dataclasses
-
-        params = ", ".join(f"{f.name}={f.default}" for f in dataclasses.fields(cls.Params))
+        params = ", ".join([f"{f.name}={f.default}" for f in dataclasses.fields(cls.Params)]
+                           + ([f"{WEIGHTS_OPTION}=DIR (trained weights; default: the committed ones)"]
+                              if info.trainable else []))
         flags = "/".join(sorted(info.tasks)) + f", {info.space}" + (", trainable" if info.trainable else "")
         print(f"{name:16s} {info.summary} [{flags}]" + (f"\n{'':16s} parameters: {params}" if params else ""))
     return 0
