@@ -99,3 +99,16 @@ def test_a_take_opened_by_path_drops_a_t_pose_frame_0_as_the_catalogue_does(data
     by_path, by_id = load_motion(str(path)), load_motion("cmu/walk/35_31")
     assert by_path.n_frames == read_bvh(path).n_frames - 1 == by_id.n_frames
     assert np.array_equal(by_path.channels, by_id.channels)
+
+
+def test_an_engines_time_is_its_clean_not_its_loading(take, monkeypatch):
+    """As ``workbench clean`` reports it: the first torch engine of a session spends
+    seconds importing torch, which is not the engine's speed."""
+    import time as clock
+
+    from workbench import registry
+    from workbench.app.take import run_engine
+
+    make = registry.create
+    monkeypatch.setattr(registry, "create", lambda spec: (clock.sleep(0.5), make(spec))[1])
+    assert run_engine("identity", take).seconds < 0.25
