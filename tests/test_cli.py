@@ -163,7 +163,7 @@ def test_clean_writes_a_t_pose_frame_0_back_untouched(tmp_path, data_root, capsy
     raw = read_bvh(src)
     out = tmp_path / "clean.bvh"
     assert main(["clean", str(src), "-o", str(out), "--engine", "gaussian"]) == 0
-    assert "T-pose reference frame: written back" in capsys.readouterr().err
+    assert "02_01.bvh is a T-pose reference frame: written back" in capsys.readouterr().err
     cleaned = read_bvh(out)
     assert cleaned.n_frames == raw.n_frames
     assert np.allclose(cleaned.channels[0], raw.channels[0], atol=1e-5)
@@ -171,3 +171,19 @@ def test_clean_writes_a_t_pose_frame_0_back_untouched(tmp_path, data_root, capsy
     assert np.allclose(cleaned.channels[1:], alone.channels, atol=1e-5)  # the T-pose did not leak in
     assert main(["clean", str(src), "-o", str(out), "--engine", "gaussian", "--keep-reference"]) == 0
     assert not np.allclose(read_bvh(out).channels[1], alone.channels[0], atol=1e-3)
+
+
+def test_clean_a_folder_of_takes_into_another(tmp_path, data_root, capsys):
+    takes, out = tmp_path / "takes", tmp_path / "out"
+    (takes / "walks").mkdir(parents=True)
+    (takes / "walks" / "02_01.bvh").write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    (takes / "kick.bvh").write_bytes((data_root / "cmu-daz" / "kick" / "10_04.bvh").read_bytes())
+    (takes / "broken.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    assert main(["clean", str(takes), "-o", str(out), "--engine", "gaussian"]) == 2  # one take is broken
+    err = capsys.readouterr().err
+    assert "broken.bvh" in err and "1 of 3 takes failed" in err
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == ["kick.bvh", "walks", "walks/02_01.bvh"]
+    assert read_bvh(out / "kick.bvh").skeleton.n_joints == 43
+    assert read_bvh(out / "walks" / "02_01.bvh").n_frames == read_bvh(takes / "walks" / "02_01.bvh").n_frames
+    assert main(["clean", str(takes), "-o", str(takes), "--engine", "gaussian"]) == 2  # never over the recordings
+    assert "name another folder" in capsys.readouterr().err

@@ -33,6 +33,11 @@ def _user_errors() -> tuple[type, ...]:
     return (UserError, MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, KeyError)
 
 
+def _message(err: BaseException) -> str:
+    """A user error's one line (a KeyError's text without the quotes str() adds)."""
+    return err.args[0] if isinstance(err, KeyError) and err.args else str(err)
+
+
 def split_engine_specs(values: list[str]) -> list[str]:
     """``["ebf:bias=true,free=1,gaussian"]`` -> ``["ebf:bias=true,free=1", "gaussian"]``:
     a comma-separated piece that is a bare ``key=value`` continues the previous spec."""
@@ -111,37 +116,70 @@ def cmd_corrupt(args) -> int:
     return 0
 
 
-def cmd_clean(args) -> int:
-    from . import registry
+def _clean_take(engine, source: Path, output: Path, mask: str | None, keep_reference: bool) -> None:
+    """Clean one take with ``engine`` and write it as BVH (atomically); one line on stdout."""
     from .core.motion import Observation
     from .data import has_reference_frame
     from .io import write_bvh
     from .io.mask import read_mask
 
-    motion = _read(args.input)
-    mask_path = args.mask or (str(args.input) + ".mask.json" if Path(str(args.input) + ".mask.json").exists() else None)
+    motion = _read(source)
+    sidecar = Path(f"{source}.mask.json")
+    mask_path = mask or (str(sidecar) if sidecar.exists() else None)
     observed = None
     if mask_path:
         observed = read_mask(mask_path, motion.skeleton, motion.n_frames)
-        if not args.mask:
+        if not mask:
             print(f"note: using the mask sidecar {mask_path}", file=sys.stderr)
     reference = None
-    if has_reference_frame(motion) and not args.keep_reference:
+    if has_reference_frame(motion) and not keep_reference:
         reference, motion = motion.channels[:1], motion.slice(1)
         observed = None if observed is None else observed[1:]
-        print("note: frame 0 is a T-pose reference frame: written back as it is, not cleaned "
+        print(f"note: frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "
               "(--keep-reference cleans it with the motion)", file=sys.stderr)
     obs = Observation(motion, observed)
-    engine = registry.create(args.engine)
     t0 = time.perf_counter()
     result = engine.clean(obs)
     dt = time.perf_counter() - t0
     cleaned = result.motion
     if reference is not None:
         cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
-    write_bvh(args.output, cleaned)
-    print(f"wrote {args.output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
+    write_bvh(output, cleaned)
+    print(f"wrote {output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
           f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled")
+
+
+def cmd_clean(args) -> int:
+    from . import registry
+    from .data.roots import files_under
+    from .io import MOTION_SUFFIXES
+
+    source, output = Path(args.input), Path(args.output)
+    if not source.is_dir():
+        _clean_take(registry.create(args.engine), source, output, args.mask, args.keep_reference)
+        return 0
+    if args.mask:
+        raise UserError("--mask is one take's mask; in a folder each take's own INPUT.mask.json is used")
+    if output.resolve() == source.resolve() or output.exists() and not output.is_dir():
+        raise UserError(f"-o {output}: for a folder of takes, name another folder for the cleaned ones")
+    takes = [p for p in files_under(source)
+             if p.suffix.lower() in MOTION_SUFFIXES and not p.resolve().is_relative_to(output.resolve())]
+    if not takes:
+        raise UserError(f"{source} holds no .bvh or .amc file")
+    engine = registry.create(args.engine)
+    failed = 0
+    for path in takes:
+        try:
+            _clean_take(engine, path, output / path.relative_to(source).with_suffix(".bvh"), None,
+                        args.keep_reference)
+        except _user_errors() as err:  # one bad take does not stop the others
+            failed += 1
+            msg = _message(err)
+            print(f"workbench clean: error: {msg if msg.startswith(str(path)) else f'{path}: {msg}'}", file=sys.stderr)
+    if failed:
+        print(f"workbench clean: {failed} of {len(takes)} takes failed (above); the others were written",
+              file=sys.stderr)
+        return 2
     return 0
 
 
@@ -311,8 +349,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--keep-reference", action="store_true", help="keep a T-pose frame 0")
     sp.set_defaults(func=cmd_corrupt)
 
-    sp = sub.add_parser("clean", help="clean a take with an engine and write BVH")
-    sp.add_argument("input")
+    sp = sub.add_parser("clean", help="clean a take (or a folder of takes) with an engine and write BVH")
+    sp.add_argument("input", help="a BVH/AMC take, or a folder of them (cleaned into the folder -o names, "
+                                  "with the same layout)")
     sp.add_argument("-o", "--output", required=True)
     sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
@@ -378,8 +417,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except _user_errors() as err:
-        msg = err.args[0] if isinstance(err, KeyError) and err.args else str(err)
-        print(f"workbench {args.command}: error: {msg}", file=sys.stderr)
+        print(f"workbench {args.command}: error: {_message(err)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # the reader stopped early (`workbench engines | head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit's flush stays quiet
