@@ -187,3 +187,23 @@ def test_clean_a_folder_of_takes_into_another(tmp_path, data_root, capsys):
     assert read_bvh(out / "walks" / "02_01.bvh").n_frames == read_bvh(takes / "walks" / "02_01.bvh").n_frames
     assert main(["clean", str(takes), "-o", str(takes), "--engine", "gaussian"]) == 2  # never over the recordings
     assert "name another folder" in capsys.readouterr().err
+
+
+def test_bench_reports_the_memory_an_engines_cleans_add(walk):
+    from workbench.engine import CleanResult, Engine, EngineInfo
+    from workbench.evaluate import resident_mb, run_benchmark
+
+    if np.isnan(resident_mb()):
+        pytest.skip("resident memory is read from /proc (Linux)")
+
+    class Hungry(Engine):
+        info = EngineInfo(name="test-hungry", summary="test: 200 MB of scratch", tasks=frozenset({"denoise"}))
+
+        def clean(self, observation, /):
+            scratch = np.ones(200 * 2**20 // 8)  # touched, so resident
+            return CleanResult(observation.motion.with_channels(observation.motion.channels + 0 * scratch[0]))
+
+    clip = [("walk", walk.slice(0, 300))]
+    summary = run_benchmark([Hungry(), "identity"], "angular:0.5", clip).summary
+    assert summary["test-hungry"]["peak_mb"] > 150
+    assert summary["identity"]["peak_mb"] < 50  # what the hungry engine freed is not counted again

@@ -2,12 +2,15 @@
 
 Every engine sees the same corrupted observations (same corruption spec and seeds).
 ``frames_per_s`` is cleaning throughput: frames cleaned divided by the wall time spent
-inside ``engine.clean`` (single process, this machine). Summary values are means over
-all (clip, seed) rows of an engine.
+inside ``engine.clean`` (single process, this machine). ``peak_mb`` is the most resident
+memory the engine's cleans added to the process, in MB: its working memory on the longest
+clip, beyond its loaded weights (Linux; absent elsewhere). Other summary values are means
+over all (clip, seed) rows of an engine.
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
 import time
 from dataclasses import dataclass, field
@@ -22,12 +25,46 @@ from .corruption import make_case
 from .metrics import METRICS
 
 
+#: summary columns after the metrics: speed and memory
+COST_COLUMNS = ("frames_per_s", "peak_mb")
+
+
+def resident_mb(field: str = "VmRSS") -> float:
+    """This process's resident memory (``VmRSS``) or its peak (``VmHWM``) in MB; NaN
+    where /proc does not tell (not Linux)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return math.nan
+
+
+def reset_peak_resident() -> float:
+    """Hand freed heap memory back to the system (glibc's malloc_trim: what an earlier
+    engine freed would otherwise be reused unseen), then start a new peak of resident
+    memory at the current one (Linux: clear_refs 5); returns the current resident MB,
+    NaN where the peak cannot be reset."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as fh:
+            fh.write("5")
+    except OSError:
+        return math.nan
+    return resident_mb()
+
+
 def format_value(metric: str, value: float) -> str:
-    """A table cell: speeds whole, jitter in 3 significant digits, the rest to 3
-    decimals; "–" for NaN (undefined)."""
+    """A table cell: speeds and memory whole, jitter in 3 significant digits, the rest to
+    3 decimals; "–" for NaN (undefined)."""
     if math.isnan(value):
         return "–"
-    if metric == "frames_per_s":
+    if metric in COST_COLUMNS:
         return f"{value:,.0f}"
     return f"{value:.3g}" if metric == "jitter_cm_s3" else f"{value:.3f}"
 
@@ -47,7 +84,7 @@ class BenchResult:
                 "rows": self.rows, "summary": self.summary}
 
     def markdown(self) -> str:
-        cols = [m for m in METRICS if any(m in s for s in self.summary.values())] + ["frames_per_s"]
+        cols = [m for m in (*METRICS, *COST_COLUMNS) if any(m in s for s in self.summary.values())]
         head = "| engine | " + " | ".join(cols) + " |"
         lines = [head, "|" + "---|" * (len(cols) + 1)]
         for spec, s in self.summary.items():
@@ -103,6 +140,7 @@ def run_benchmark(
             engine.clean(Observation(obs.motion.slice(0, n), obs.observed[:n]))
         frames = 0
         seconds = 0.0
+        before = reset_peak_resident()
         for clip_id, case in cases:
             if progress:
                 progress(f"{spec} on {clip_id} seed {case.seed}")
@@ -122,5 +160,8 @@ def run_benchmark(
             if vals:
                 summary[m] = float(np.mean(vals))
         summary["frames_per_s"] = frames / seconds if seconds > 0 else float("inf")
+        peak = resident_mb("VmHWM") - before
+        if not math.isnan(peak):
+            summary["peak_mb"] = max(peak, 0.0)
         result.summary[spec] = summary
     return result
