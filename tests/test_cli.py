@@ -148,6 +148,8 @@ def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_ro
     out = tmp_path / "mssa-daz"
     assert main(["train", "mssa", "--data", str(takes), "--out", str(out)]) == 0
     assert f"--engine 'mssa:weights={out}'" in capsys.readouterr().out
+    training = json.loads((out / "manifest.json").read_text())["training"]
+    assert "minutes" in training and training.get("peak_mb", 1) > 0  # peak_mb: Linux only
     cleaned = tmp_path / "clean.bvh"
     assert main(["clean", str(take), "-o", str(cleaned), "--engine", f"mssa:weights={out}"]) == 0
     assert read_bvh(cleaned).skeleton.n_joints == 43

@@ -231,7 +231,7 @@ def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, find_data_root, select
     from .engine import WEIGHTS_OPTION, EngineError
-    from .evaluate import run_benchmark
+    from .evaluate import reset_peak_resident, resident_mb, run_benchmark
 
     spec = args.engine
     if args.epochs is not None:
@@ -255,12 +255,14 @@ def cmd_train(args) -> int:
         print(f"note: training on the {len(motions)} clips of the first clip's skeleton only", file=sys.stderr)
     print(f"training {engine.spec} on {len(motions)} clips ({sum(m.n_frames for m in motions):,} frames)",
           file=sys.stderr)
+    resident = reset_peak_resident()
     t0 = time.perf_counter()
     try:
         engine.fit(motions)
     except KeyboardInterrupt:
         raise UserError("training interrupted; nothing was saved") from None
     minutes = (time.perf_counter() - t0) / 60
+    peak_mb = resident_mb("VmHWM") - resident  # NaN off Linux
     test = [(c.id, c.load()) for c in select(clips, "test")]
     validation = {}
     if test:
@@ -270,11 +272,14 @@ def cmd_train(args) -> int:
         print(f"test split, {corruption}: " + ", ".join(f"{k} {v:.3f}" for k, v in summary.items()), file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.default_weights_dir().name)
     try:
-        manifest = engine.save(out, {"training": {"clips": [c.id for c in train], "split": "train",
-                                                  "minutes": round(minutes, 2)}, "validation": validation})
+        training = {"clips": [c.id for c in train], "split": "train", "minutes": round(minutes, 2)}
+        if not np.isnan(peak_mb):
+            training["peak_mb"] = round(peak_mb)
+        manifest = engine.save(out, {"training": training, "validation": validation})
     except EngineError as err:
         raise UserError(str(err)) from None
-    print(f"trained in {minutes:.1f} min; saved {manifest}; clean with it as "
+    memory = "" if np.isnan(peak_mb) else f" using {peak_mb:,.0f} MB more memory at most"
+    print(f"trained in {minutes:.1f} min{memory}; saved {manifest}; clean with it as "
           f"--engine '{engine.spec}{',' if ':' in engine.spec else ':'}{WEIGHTS_OPTION}={out}'")
     if args.promote:
         import shutil
