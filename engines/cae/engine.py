@@ -184,6 +184,10 @@ from .representation import (Layout, decode, encode, heading, image_mask, mirror
 #: parameters that only change how a trained network is used (kept when loading weights)
 INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "angle_lever_cm", "views", "short_hole_frames",
                     "partial_hole_frames", "hole_blend_frames", "output_sigma_frames")
+#: most image columns (views x padded frames) per network call: per column, bigger calls
+#: are slower on these CPUs (2-core AVX2 EPYC, cae: 27 us up to 14k columns, 34-43 us
+#: from 21k; the 3 views of a 7,200-frame take take 931 ms in one call, 600 in three)
+MAX_CALL_COLUMNS = 10_000
 #: the views' symmetries, (mirrored, reversed), in the order ``views`` takes them
 VIEWS = ((False, False), (True, False), (False, True), (True, True))
 
@@ -399,7 +403,7 @@ class ConvAutoencoderEngine(Engine):
                  views: int = 1) -> np.ndarray:
         """The network's completion (F, H) of a raw image (F, H) known where ``mask``: the
         mean of the completions of the first ``views`` of :data:`VIEWS`, each mapped back;
-        one batch. ``mirror``: the row permutation and signs of
+        batched, at most :data:`MAX_CALL_COLUMNS` columns a call. ``mirror``: the row permutation and signs of
         :func:`.representation.mirror_rows`, needed for the mirrored views."""
         import torch
 
@@ -419,8 +423,10 @@ class ConvAutoencoderEngine(Engine):
         padded = [pad_time(x, m, frames) for x, m, _, _ in batch]
         X, M = np.stack([x for x, _ in padded]), np.stack([m for _, m in padded])
         x = network_input((X - self.mean_) / self.std_, M, self.params.input_fill)
+        per_call = max(1, MAX_CALL_COLUMNS // frames)
         with torch_threads(default_threads()), torch.inference_mode():
-            Y = self.net_(x).numpy()[..., :F].transpose(0, 2, 1) * self.std_ + self.mean_
+            Y = np.concatenate([self.net_(x[i:i + per_call]).numpy() for i in range(0, len(x), per_call)])
+        Y = Y[..., :F].transpose(0, 2, 1) * self.std_ + self.mean_
         total = np.zeros_like(image)
         for y, (_, m, mirrored, reversed_) in zip(Y, batch):
             if reversed_:
