@@ -46,8 +46,10 @@ from ..smoothing import second_difference_band
 
 #: IRLS re-weightings per motion update (each lowers J; the outer loop continues anyway)
 IRLS_STEPS = 3
-#: frames per block of the filter's matrix product (bounds memory on long takes)
-CHUNK_FRAMES = 4096
+#: frames per block of the filter's matrix product. Small blocks keep each block's lag
+#: matrix near the cache (512 x 39 x 70 float32: 5.6 MB): a 1-minute take cleans at
+#: 395-430 frames/s with 512 against 312-327 with 4096 (2-core AVX2 EPYC)
+CHUNK_FRAMES = 512
 
 
 def coverage(n_frames: int, window: int) -> np.ndarray:

@@ -66,7 +66,7 @@ def test_projector_matches_the_window_by_window_projection(fitted):
     model = fitted.models_["angles"]
     E, M = model.bases.astype(float), 20
     rng = np.random.default_rng(0)
-    for F in (20, 33, 90):
+    for F in (20, 33, 90, 1100):  # 1100: three blocks of the product (CHUNK_FRAMES)
         z = np.cumsum(rng.normal(size=(F, model.columns.size)), axis=0) * 0.2
         added, prior = WindowProjector(E, M)(z)
         ref, ref_prior = np.zeros_like(z), 0.0
