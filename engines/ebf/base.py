@@ -21,8 +21,11 @@ from workbench.engine import Engine, EngineError, architecture
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
-#: windows evaluated per forward pass at inference (bounds memory)
-INFERENCE_CHUNK = 4096
+#: windows evaluated per forward pass at inference. Small passes keep the LSTM's
+#: activations near the cache: on a 39-s take (4,723 frames) ebf cleans at 7.0-8.9k
+#: frames/s with 512 against 4.4-5.2k with 4096, bit-identical (2-core AVX2 EPYC); 256
+#: changes the output in the last bits
+INFERENCE_CHUNK = 512
 
 
 @dataclass(frozen=True)

@@ -149,6 +149,15 @@ def test_streaming_equals_offline(ebf, walk, corruption):
     assert np.abs(np.array(out) - offline).max() < 1e-5
 
 
+def test_offline_cleaning_in_several_network_passes_equals_one(ebf, walk, monkeypatch):
+    import engines.ebf.base as base
+
+    obs = parse_corruption("angular:0.5+gaps:0.01").apply(walk, seed=1)
+    whole = ebf.clean(obs).motion.channels  # 343 windows: one pass
+    monkeypatch.setattr(base, "INFERENCE_CHUNK", 100)
+    assert np.abs(ebf.clean(obs).motion.channels - whole).max() < 1e-6
+
+
 def test_stream_of_a_take_shorter_than_the_window(ebf, walk):
     short = walk.slice(0, 9)
     obs = parse_corruption("spatial:1").apply(short, seed=1)
