@@ -2,7 +2,7 @@ import json
 
 import pytest
 
-from workbench.data import DataNotFoundError, catalogue, find_clip, find_data_root, select
+from workbench.data import DataNotFoundError, catalogue, find_clip, find_data_root, select, without_reference_frame
 from workbench.data.catalogue import SPLITS_DIR
 
 
@@ -28,6 +28,8 @@ def test_reference_frame_is_dropped(clips):
     assert clip.load(keep_reference=True).n_frames == clip.frames
     daz = find_clip("10_03")
     assert daz.load().n_frames == daz.frames - 1
+    motion = clip.load()  # no T-pose left: nothing more is dropped
+    assert without_reference_frame(motion) is motion
 
 
 def test_folder_of_bvh_files_without_manifest(tmp_path, data_root):

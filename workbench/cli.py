@@ -97,13 +97,13 @@ def _read(path: str):
 
 def cmd_corrupt(args) -> int:
     from .corruption import parse_corruption
-    from .data import has_reference_frame
+    from .data import without_reference_frame
     from .io import write_bvh
     from .io.mask import write_mask
 
-    motion = _read(args.input)
-    if has_reference_frame(motion) and not args.keep_reference:
-        motion = motion.slice(1)
+    recorded = _read(args.input)
+    motion = recorded if args.keep_reference else without_reference_frame(recorded)
+    if motion.n_frames < recorded.n_frames:
         print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
     obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
     out = Path(args.output)

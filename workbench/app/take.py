@@ -60,12 +60,11 @@ def default_engines() -> list[str]:
 def load_motion(source: str) -> Motion:
     """A catalogue clip id (``cmu/walk/35_31``) or a BVH/AMC path; a T-pose frame 0 is
     dropped from either, as the catalogue does."""
-    from ..data import find_clip, has_reference_frame
+    from ..data import find_clip, without_reference_frame
 
     path = Path(source).expanduser()
     if path.suffix.lower() in MOTION_SUFFIXES or path.exists():
-        motion = read_motion(path)
-        return (motion.slice(1) if has_reference_frame(motion) else motion).replace(name=path.stem)
+        return without_reference_frame(read_motion(path)).replace(name=path.stem)
     return find_clip(source).load()
 
 

@@ -50,9 +50,7 @@ class Clip:
 
     def load(self, keep_reference: bool = False) -> Motion:
         motion = read_motion(self.path)
-        if not keep_reference and has_reference_frame(motion):
-            motion = motion.slice(1)
-        return motion.replace(name=self.id)
+        return (motion if keep_reference else without_reference_frame(motion)).replace(name=self.id)
 
 
 def has_reference_frame(motion: Motion) -> bool:
@@ -62,6 +60,11 @@ def has_reference_frame(motion: Motion) -> bool:
     a = motion.angles_deg
     root_zero = np.all(a[0, 0] == 0.0)
     return bool(root_zero and np.mean(np.abs(a[0, 1:])) < 0.5 * np.mean(np.abs(a[1, 1:])))
+
+
+def without_reference_frame(motion: Motion) -> Motion:
+    """``motion`` without its frame 0 when that is a T-pose reference frame, else as it is."""
+    return motion.slice(1) if has_reference_frame(motion) else motion
 
 
 @lru_cache(maxsize=None)
