@@ -87,7 +87,7 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert main(["bench", "--engines", "identity,gaussian", "--corrupt", "angular:0.5", "--split", "test",
                  "--clips", "cmu/run/*", "--seeds", "2", "--per-clip", "rms_angle_deg", "--json", str(js)]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert out.splitlines()[0].startswith("| engine | rms_angle_deg | mpjpe_cm")
     doc = json.loads(js.read_text())
     s = doc["summary"]["identity"]
@@ -104,6 +104,12 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
             assert len(seeds) == 2 and float(cell) == pytest.approx(np.mean(seeds), abs=6e-4)
     means = [f"{doc['summary'][spec]['rms_angle_deg']:.3f}" for spec in ("identity", "gaussian")]
     assert table[-1] == "| **mean** | | " + " | ".join(means) + " |"
+    # the reference's capture glitches are named, on stderr and in the JSON
+    assert "2 of the clean clips have capture glitches" in err
+    assert "cmu/run/35_26: RightFingerBase turns 170 degrees in one frame (frames 64-67)" in err
+    assert doc["reference_glitches"]["cmu/run/35_26"] == [
+        {"joint": "RightFingerBase", "first": 64, "last": 67, "turn_deg": pytest.approx(169.74, abs=0.01)}]
+    assert set(doc["reference_glitches"]) == {"cmu/run/35_26", "cmu/run/16_46"}
 
 
 def test_per_clip_marks_a_metric_no_seed_defines():

@@ -32,6 +32,21 @@ def test_reference_frame_is_dropped(clips):
     assert without_reference_frame(motion) is motion
 
 
+def test_reference_glitches_are_turns_faster_than_a_body_can(walk):
+    from workbench.data.quality import Glitch, reference_glitches
+
+    assert reference_glitches(walk) == []  # a clean walk
+    channels = walk.channels.copy()
+    j = walk.skeleton.index("LeftForeArm")
+    channels[100:103, 3 + 3 * j] += 170.0  # a flip about the Z axis for three frames, and back
+    channels[200, 3 + 3 * j] += 50.0  # 6,000 degrees/s at 120 fps: fast, but not faster than a body
+    found = reference_glitches(walk.with_channels(channels))
+    assert found == [Glitch("LeftForeArm", 99, 103, pytest.approx(170.0, abs=2.0))]  # plus the walk's own turn
+    assert str(found[0]) == "LeftForeArm turns 170 degrees in one frame (frames 99-103)"
+    # degrees per second: the same frames 4x slower (30 fps) turn a quarter as fast
+    assert reference_glitches(walk.with_channels(channels).replace(fps=30.0)) == []
+
+
 def test_folder_of_bvh_files_without_manifest(tmp_path, data_root):
     (tmp_path / "dance").mkdir()
     src = data_root / "cmu" / "walk" / "02_01.bvh"

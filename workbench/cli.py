@@ -218,6 +218,14 @@ def cmd_bench(args) -> int:
     if args.per_clip:
         print()
         print(result.per_clip_markdown(args.per_clip))
+    if result.glitches:
+        from .data.quality import MAX_TURN_DPS
+
+        print(f"note: {len(result.glitches)} of the clean clips have capture glitches, where a joint turns faster "
+              f"than a body can (over {MAX_TURN_DPS:,.0f} degrees/s); an engine that removes one is scored as wrong "
+              "there:", file=sys.stderr)
+        for clip, found in result.glitches.items():
+            print(f"  {clip}: " + "; ".join(map(str, found)), file=sys.stderr)
     if args.json:
         from .io.atomic import atomic_write_text
 

@@ -6,12 +6,14 @@ inside ``engine.clean`` (single process, this machine). ``peak_mb`` is the most 
 memory the engine's clean of the longest case added to the process, in MB, measured in a
 clean of its own after the timed ones: its working memory, beyond its loaded weights
 (Linux; absent elsewhere). Other summary values are means over all (clip, seed) rows of
-an engine.
+an engine. ``glitches`` names the capture glitches of the clean clips scored against
+(:mod:`workbench.data.quality`), which stay in the scores.
 """
 
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -23,6 +25,7 @@ from . import metrics, registry
 from .core.motion import Case, Motion, Observation
 from .engine import Engine
 from .corruption import make_case
+from .data.quality import Glitch, reference_glitches
 from .metrics import METRICS
 
 
@@ -79,10 +82,14 @@ class BenchResult:
     clips: list[str]
     rows: list[dict] = field(default_factory=list)
     summary: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: the capture glitches of each clip's clean motion, for the clips that have any
+    glitches: dict[str, list[Glitch]] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"corruption": self.corruption, "seeds": self.seeds, "clips": self.clips,
-                "rows": self.rows, "summary": self.summary}
+                "rows": self.rows, "summary": self.summary,
+                "reference_glitches": {clip: [dataclasses.asdict(g) for g in found]
+                                       for clip, found in self.glitches.items()}}
 
     def markdown(self) -> str:
         cols = [m for m in (*METRICS, *COST_COLUMNS) if any(m in s for s in self.summary.values())]
@@ -134,6 +141,7 @@ def run_benchmark(
     ]
     result = BenchResult(corruption=str(cases[0][1].corruption) if cases else corruption,
                          seeds=list(seeds), clips=[c for c, _ in clips])
+    result.glitches = {clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))}
     for spec, engine in engines.items():
         if cases:  # warm-up (lazy imports, caches) outside the timed calls
             obs = cases[0][1].observation
