@@ -140,8 +140,8 @@ def run_benchmark(
         (clip_id, make_case(motion, corruption, seed)) for clip_id, motion in clips for seed in seeds
     ]
     result = BenchResult(corruption=str(cases[0][1].corruption) if cases else corruption,
-                         seeds=list(seeds), clips=[c for c, _ in clips])
-    result.glitches = {clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))}
+                         seeds=list(seeds), clips=[c for c, _ in clips],
+                         glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))})
     for spec, engine in engines.items():
         if cases:  # warm-up (lazy imports, caches) outside the timed calls
             obs = cases[0][1].observation

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.motion import Motion
-from ..core.rotations import euler_to_matrix, rotation_angle_deg
+from ..core.kinematics import local_rotations
+from ..core.rotations import rotation_angle_deg
 
 #: degrees per second no human joint turns faster than (a pitcher's shoulder: ~7,000)
 MAX_TURN_DPS = 7000.0
@@ -44,12 +45,13 @@ def reference_glitches(motion: Motion, max_turn_dps: float = MAX_TURN_DPS) -> li
     """The places where a joint of ``motion`` turns faster than ``max_turn_dps`` between
     two consecutive frames, by joint, then frame."""
     skeleton = motion.skeleton
-    limit = max_turn_dps / motion.fps
+    joints = np.flatnonzero(skeleton.has_rotation)
+    R = local_rotations(skeleton, motion.angles_deg, joints)
+    turns = rotation_angle_deg(R[1:], R[:-1])  # (F - 1, n) degrees between frames t and t + 1
     found = []
-    for j in np.flatnonzero(skeleton.has_rotation):
-        R = euler_to_matrix(motion.angles_deg[:, j], skeleton.rotation_order(j))
-        turn = rotation_angle_deg(R[1:], R[:-1])  # (F - 1,) degrees between frames t and t + 1
-        fast = np.flatnonzero(turn > limit)
-        for run in np.split(fast, np.flatnonzero(np.diff(fast) >= MERGE_FRAMES) + 1) if fast.size else []:
-            found.append(Glitch(skeleton.names[j], int(run[0]), int(run[-1]) + 1, float(turn[run].max())))
+    for k, j in enumerate(joints):
+        fast = np.flatnonzero(turns[:, k] > max_turn_dps / motion.fps)
+        if fast.size:
+            for run in np.split(fast, np.flatnonzero(np.diff(fast) >= MERGE_FRAMES) + 1):
+                found.append(Glitch(skeleton.names[j], int(run[0]), int(run[-1]) + 1, float(turns[run, k].max())))
     return found
