@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
-from workbench.core.motion import Observation
+from workbench.core.motion import Observation, channel_joints
 from workbench.engine import CleanResult, Engine, EngineInfo
 
 from .identity import prepare
@@ -117,8 +117,6 @@ class Gaussian(Engine):
         p = prepare(observation)
         # certainty per joint (the root position shares the root joint's), then per column
         cert = np.where(observation.observed, 1.0, GAP_CERTAINTY)
-        J = cert.shape[1]
-        columns = np.concatenate([np.zeros(3, int), np.repeat(np.arange(J), 3)])
-        Y = normalized_gaussian(p.bridged, cert, sigma, columns)
+        Y = normalized_gaussian(p.bridged, cert, sigma, channel_joints(observation.skeleton))
         diag = {"filter_sigma_frames": np.full(Y.shape, sigma)}
         return CleanResult(motion.with_channels(p.output(Y)), diag)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.core.channels import forward_fill, interpolate_gaps, rewrap_deg, unwrap_deg
-from workbench.core.motion import Observation, channel_mask
+from workbench.core.motion import Observation, angle_slice
 from workbench.engine import CleanResult, Engine, EngineInfo
 
 
@@ -52,17 +52,18 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
     """Unwrap and bridge an observation (``kind`` as in
     :func:`workbench.core.channels.interpolate_gaps`), touching only the columns that
     need it (most takes have no angle wrapping and no gaps)."""
-    mask = channel_mask(observation.observed)
+    mask = observation.channel_observed
     raw = observation.motion.channels
     complete = bool(observation.observed.all())
     # only a column spanning 180 degrees or more can step by that much between samples
-    angles = raw[:, 3:]
+    first = angle_slice(observation.skeleton).start
+    angles = raw[:, angle_slice(observation.skeleton)]
     span = np.fmax.reduce(angles, axis=0) - np.fmin.reduce(angles, axis=0)    # NaN-ignoring
     wide = np.flatnonzero(span >= 180.0)
     wrapped = np.zeros(0, int)
     if wide.size:
-        a = angles[:, wide] if complete else forward_fill(angles[:, wide], mask[:, 3 + wide])
-        wrapped = 3 + wide[(np.abs(np.diff(a, axis=0)) >= 180.0).any(axis=0)]
+        a = angles[:, wide] if complete else forward_fill(angles[:, wide], mask[:, first + wide])
+        wrapped = first + wide[(np.abs(np.diff(a, axis=0)) >= 180.0).any(axis=0)]
     X = raw
     if wrapped.size:
         X = raw.copy()
@@ -83,9 +84,9 @@ def rewrap_angles(Y: np.ndarray, observation: Observation) -> np.ndarray:
     """Channel matrix ``Y`` (unwrapped angles, e.g. a filtered :func:`bridge_gaps`) with
     its angle channels shifted by whole turns onto the observation's own branch, so the
     output reads like the input (equal to ``Y`` modulo 360)."""
-    mask = channel_mask(observation.observed)
+    mask, angles = observation.channel_observed, angle_slice(observation.skeleton)
     out = np.array(Y, dtype=float)
-    out[:, 3:] = rewrap_deg(out[:, 3:], observation.motion.channels[:, 3:], mask[:, 3:])
+    out[:, angles] = rewrap_deg(out[:, angles], observation.motion.channels[:, angles], mask[:, angles])
     return out
 
 

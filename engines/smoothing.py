@@ -40,7 +40,7 @@ from scipy.linalg import solveh_banded
 
 from workbench.core.channels import interpolate_gaps
 from workbench.core.kinematics import short_lever_joints
-from workbench.core.motion import angle_joints, channel_mask, joint_angle_columns
+from workbench.core.motion import angle_joints, joint_angle_columns
 
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10
@@ -238,7 +238,7 @@ def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.n
     :func:`smooth_and_fill` (F, 3 + 3J), when the caller has it."""
     out = np.array(channels, float)
     cols = joint_angle_columns(joints)
-    mask = channel_mask(observed)[:, cols]
+    mask = np.repeat(np.asarray(observed, bool)[:, joints], 3, axis=1)
     out[:, cols] = interpolate_gaps(smooth_and_fill(out[:, cols], mask) if smoothed is None else smoothed[:, cols],
                                     mask)
     return out

@@ -10,6 +10,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 
+import numpy as np
 import pytest
 
 from workbench.data import catalogue, find_data_root
@@ -36,6 +37,24 @@ def walk(data_root):
 def kick(data_root):
     """cmu-daz kick 10_03 (43 joints), reference frame dropped."""
     return read_bvh(data_root / "cmu-daz" / "kick" / "10_03.bvh").slice(1)
+
+
+@pytest.fixture(scope="session")
+def studio_take(clips):
+    """Bandai walk dataset-1 walk/active 001 (22 joints with six channels each, the Hips
+    translated under the reference node joint_Root, 30 fps): 146 frames."""
+    return next(c for c in clips if c.id == "bandai/walk/dataset-1_walk_active_001").load()
+
+
+@pytest.fixture(scope="session")
+def stretchy_take(studio_take):
+    """The studio take with a stretchy rig's left forearm: LowerArm_L translated, its
+    bone 10 % longer and shorter over a second, as a stretchy export would animate it."""
+    sk = studio_take.skeleton
+    k = sk.index("LowerArm_L")
+    stretch = 1.0 + 0.1 * np.sin(2 * np.pi * np.arange(studio_take.n_frames) / studio_take.fps)
+    translations = np.concatenate([studio_take.translations, (stretch[:, None] * sk.offsets[k])[:, None]], axis=1)
+    return studio_take.replace(skeleton=sk.replace(translated=(*sk.translated, k)), translations=translations)
 
 
 @pytest.fixture(scope="session")

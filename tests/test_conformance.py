@@ -17,7 +17,7 @@ _ready: dict = {}
 
 @pytest.fixture(scope="module")
 def takes(data_root):
-    return conformance_clips(data_root)
+    return conformance_clips(data_root, dataset="cmu")
 
 
 @pytest.fixture(scope="module")

@@ -94,3 +94,36 @@ def test_layout_mismatch_is_an_error(walk, kick):
         metrics.rms_angle_deg(walk, kick)
     with pytest.raises(ValueError, match="frame counts"):
         metrics.mpjpe_cm(walk, walk.slice(0, 10))
+
+
+def test_a_studio_take_is_aligned_at_its_hips_and_its_root_chain_is_the_trajectory(studio_take):
+    """joint_Root carries the moving Hips: together they are the trajectory. Moving the
+    Hips and turning both is no joint error, it is root error, and their rotations are
+    no joint-angle channels."""
+    sk = studio_take.skeleton
+    assert sk.root_chain == (0, 1) and sk.body_root == 1
+    moved = studio_take.replace(translations=studio_take.translations + [3.0, 0.0, 4.0])
+    assert metrics.mpjpe_cm(studio_take, moved) == pytest.approx(0, abs=1e-9)
+    X = moved.channels
+    X[:, 6:9] += 10.0  # the Hips' rotation
+    turned = moved.with_channels(X)
+    assert metrics.rms_angle_deg(studio_take, turned) == 0
+    assert metrics.root_cm(studio_take, turned) == pytest.approx(5.0)  # the Hips, 5 cm off
+    X[:, 3:6] += 10.0  # joint_Root's, which swings the Hips about the origin: no joint angle either
+    assert metrics.rms_angle_deg(studio_take, moved.with_channels(X)) == 0
+
+
+def test_a_stretching_bone_is_scored_in_positions(stretchy_take):
+    """A translated joint's translation is no angle: getting its stretch wrong shows in
+    the joint positions it moves, not in the angles."""
+    rigid = stretchy_take.replace(translations=np.concatenate(
+        [stretchy_take.translations[:, :1],
+         np.broadcast_to(stretchy_take.skeleton.offsets[stretchy_take.skeleton.translated[1]],
+                         stretchy_take.translations[:, 1:].shape)], axis=1))
+    assert metrics.rms_angle_deg(stretchy_take, rigid) == 0
+    err = metrics.joint_position_error_cm(stretchy_take, rigid)
+    arm = [stretchy_take.skeleton.index(n) for n in ("LowerArm_L", "Hand_L")]
+    assert err[:, arm].max() > 2.0 and np.delete(err, arm, axis=1).max() == pytest.approx(0, abs=1e-9)
+    observed = np.ones(err.shape, bool)
+    observed[10:20, arm[0]] = False  # a translated joint missing: its own position is unknown
+    assert metrics.gap_mpjpe_cm(stretchy_take, rigid, observed) == pytest.approx(err[10:20, arm].mean())

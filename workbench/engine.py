@@ -170,10 +170,14 @@ class Engine:
     def check_skeleton(self, skeleton: Skeleton) -> None:
         """Raise EngineError if this engine was fitted for another skeleton layout."""
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
+            mine = (f"engine {self.info.name!r} was trained for another skeleton ({self.skeleton_description_}); "
+                    f"this take has {skeleton.n_joints} joints rooted at {skeleton.names[0]!r}")
+            if skeleton.translated:  # no trained engine models them yet
+                moving = ", ".join(skeleton.names[j] for j in skeleton.translated)
+                raise EngineError(f"{mine}, and joints it cannot model yet: {moving} move by position channels. "
+                                  "Clean it with a classical engine: kalman, gaussian, butterworth, lerp, spline.")
             raise EngineError(
-                f"engine {self.info.name!r} was trained for another skeleton "
-                f"({self.skeleton_description_}); this take has {skeleton.n_joints} joints "
-                f"rooted at {skeleton.names[0]!r}. Train it on takes of this skeleton "
+                f"{mine}. Train it on takes of this skeleton "
                 f"(`workbench train {self.info.name} --data DIR --out FOLDER`) and clean with "
                 f"`{self.info.name}:{WEIGHTS_OPTION}=FOLDER`."
             )

@@ -5,7 +5,13 @@ Units are in the names: ``_deg`` degrees, ``_cm`` centimetres (file units times
 "Joint-angle channels" are the rotation channels of every joint but the root
 (:func:`workbench.core.motion.angle_columns`), as scored by Mall et al.; position errors
 are root-aligned (the root position is subtracted from every joint, per frame), as in
-Kaufmann et al.
+Kaufmann et al. "The root" is the body's: ``skeleton.body_root``, the joint the root
+chain ends at, which is the file's root in the CMU sets and the Hips that a studio
+export's reference node ``joint_Root`` carries. The root chain's rotations are not
+joint-angle channels, and the position scores average over the body (:func:`body_joints`:
+the body root and the joints below it), not over a reference node above it, whose
+root-aligned position is only the trajectory turned round. Translations are scored
+through the positions they move.
 """
 
 from __future__ import annotations
@@ -40,35 +46,46 @@ def rms_angle_deg(truth: Motion, estimate: Motion) -> float:
     return float(np.mean(rms_angle_deg_per_frame(truth, estimate)))
 
 
+def body_joints(skeleton) -> np.ndarray:
+    """Indices of the joints the position scores average over: all but those of the root
+    chain above the body root (every joint in the CMU sets)."""
+    return np.setdiff1d(np.arange(skeleton.n_joints), skeleton.root_chain[:-1])
+
+
 def joint_position_error_cm(truth: Motion, estimate: Motion) -> np.ndarray:
     """(F, J) root-aligned Euclidean joint position errors in cm."""
     _check(truth, estimate)
-    t = truth.positions - truth.positions[:, :1]
-    e = estimate.positions - estimate.positions[:, :1]
+    root = truth.skeleton.body_root
+    t = truth.positions - truth.positions[:, root:root + 1]
+    e = estimate.positions - estimate.positions[:, root:root + 1]
     return np.linalg.norm(e - t, axis=2) * truth.skeleton.unit_cm
 
 
 def mpjpe_cm(truth: Motion, estimate: Motion) -> float:
-    """Mean per-joint position error, root-aligned, in cm (Kaufmann et al.)."""
-    return float(np.mean(joint_position_error_cm(truth, estimate)))
+    """Mean per-joint position error over the body joints, root-aligned, in cm (Kaufmann
+    et al.)."""
+    return float(np.mean(joint_position_error_cm(truth, estimate)[:, body_joints(truth.skeleton)]))
 
 
 def root_cm(truth: Motion, estimate: Motion) -> float:
-    """Mean distance of the root joint from the truth's, in cm, in world space: the
-    trajectory, which the root-aligned scores do not see."""
+    """Mean distance of the (body's) root joint from the truth's, in cm, in world space:
+    the trajectory, which the root-aligned scores do not see."""
     _check(truth, estimate)
-    return float(np.mean(np.linalg.norm(estimate.positions[:, 0] - truth.positions[:, 0], axis=1))
+    root = truth.skeleton.body_root
+    return float(np.mean(np.linalg.norm(estimate.positions[:, root] - truth.positions[:, root], axis=1))
                  * truth.skeleton.unit_cm)
 
 
 def gap_mpjpe_cm(truth: Motion, estimate: Motion, observed: np.ndarray) -> float:
     """Root-aligned mean joint position error, in cm, over the positions that depend on
     missing data (observed (F, J) False): each (frame, joint) whose root or ancestor is
-    missing there (:func:`~workbench.core.motion.position_unknown`). A joint's missing
-    angles move its children, so those are the positions that test a fill. NaN when
+    missing there, or itself when it is translated
+    (:func:`~workbench.core.motion.position_unknown`), among the body joints. A joint's
+    missing angles move its children, so those are the positions that test a fill. NaN when
     nothing is missing or no position depends on what is (a missing leaf joint: see
     ``rms_angle_deg``)."""
-    unknown = position_unknown(observed, truth.skeleton.parents)
+    unknown = position_unknown(observed, truth.skeleton.parents, truth.skeleton.translated)
+    unknown[:, list(truth.skeleton.root_chain[:-1])] = False
     if not unknown.any():
         return float("nan")
     return float(np.mean(joint_position_error_cm(truth, estimate)[unknown]))
@@ -96,11 +113,12 @@ def bone_length_stats_cm(positions: np.ndarray, motion_like: Motion) -> dict[str
 
 
 def jitter_cm_s3(motion: Motion) -> float:
-    """Mean magnitude of the jerk (third time derivative) of root-aligned joint positions,
-    in cm/s^3: high for jittery motion, low for smooth motion."""
+    """Mean magnitude of the jerk (third time derivative) of the body joints' root-aligned
+    positions, in cm/s^3: high for jittery motion, low for smooth motion."""
     if motion.n_frames < 4:
         return float("nan")
-    p = (motion.positions - motion.positions[:, :1]) * motion.skeleton.unit_cm
+    root, body = motion.skeleton.body_root, body_joints(motion.skeleton)
+    p = (motion.positions[:, body] - motion.positions[:, root:root + 1]) * motion.skeleton.unit_cm
     jerk = np.diff(p, n=3, axis=0) * motion.fps**3
     return float(np.mean(np.linalg.norm(jerk, axis=2)))
 

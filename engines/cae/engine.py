@@ -444,7 +444,7 @@ class ConvAutoencoderEngine(Engine):
         layout = self.layout_
         linear = bridge_gaps(observation)
         holes = self.bridged_holes(observation, linear)
-        seen, bridge = channel_mask(observation.observed), channel_mask(holes)
+        seen, bridge = observation.channel_observed, channel_mask(holes, skeleton)
         # smoothed once: the holes' bridges and (with anchor) the IK reference
         smoothed = smooth_and_fill(linear, seen) if self.params.anchor or holes.any() else None
         bridged = np.where(bridge, smoothed, linear) if holes.any() else linear
@@ -481,11 +481,12 @@ class ConvAutoencoderEngine(Engine):
                 out = self.blend_short_holes(out, mask)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         short, frames, ref, ref_local = self._ik_reference(observation, bridged, smoothed, P, ref, ref_local)
-        root, angles = inverse_kinematics(skeleton, target, ref, reference_local=ref_local, reference_joints=short,
-                                          reference_frames=frames)
-        channels = rewrap_angles(np.concatenate([root, angles.reshape(observation.n_frames, -1)], axis=1), observation)
+        root, angles, translations = inverse_kinematics(skeleton, target, ref, reference_local=ref_local,
+                                                        reference_joints=short, reference_frames=frames)
+        solved = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations)
+        channels = rewrap_angles(solved.channels, observation)
         if self.params.keep_observed:
-            given = channel_mask(observation.observed)
+            given = observation.channel_observed
             channels[given] = observation.motion.channels[given]
         return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw})
 

@@ -48,7 +48,7 @@ from typing import Sequence
 import numpy as np
 
 from workbench.core.channels import gap_distance, hole_length
-from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
 from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
 
@@ -163,6 +163,6 @@ class EBD(WindowEngine):
             share = np.clip(gap_distance(data.missing)[centres] / blend, 0.0, 1.0) if blend > 0 else 1.0
             base = self._bridge(observation, data)[centres]
             X[block] = np.where(data.missing[centres], base + share * (pred - base), X[block])
-        mask = channel_mask(observation.observed)
+        mask = observation.channel_observed
         out = np.where(mask, observation.motion.channels, rewrap_angles(X, observation))
         return CleanResult(observation.motion.with_channels(out))

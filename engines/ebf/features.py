@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
 
@@ -136,7 +136,7 @@ def frame_data(observation: Observation, layout: Layout, norm: Normaliser, with_
     X = bridge_gaps(observation)
     X[:, layout.columns] = anchor_turns(X[:, layout.columns], norm.angle_mean)
     values = X[:, layout.columns]
-    missing = ~channel_mask(observation.observed)[:, layout.columns]
+    missing = ~observation.channel_observed[:, layout.columns]
     parts = [norm(np.concatenate([values, layout.root_velocity(X, observation.motion.fps)], axis=1))]
     if with_mask:
         parts.append((~missing).astype(float))

@@ -9,7 +9,7 @@ motion at 120 fps without lag; see :mod:`engines.smoothing` for the model and
 the exact banded solver of its RTS smoother.
 
 Noise variances, per channel (channel units: degrees for angles, the file unit for the
-root position):
+root position and any translations):
 
 * measurement variance ``r`` [deg^2]: from the median absolute second difference of the
   observed samples, ``r = (1.4826 median|d2|)^2 / 6`` (white noise of variance r gives
@@ -24,8 +24,8 @@ estimated noise std is within ~10 % of the true one and the smoothed error is wi
 ~3-10 % of the best per-channel choice of q found with the ground truth.
 
 ``measurement_noise_deg2`` / ``process_noise_deg2_per_frame4`` > 0 fix ``r`` / ``q`` for
-every joint-angle channel (root rotation included) instead; the root position channels,
-in other units, always use the estimates. Gaps are bridged by the smoother itself.
+every joint-angle channel (root rotation included) instead; the root position and
+translation channels, in other units, always use the estimates. Gaps are bridged by the smoother itself.
 """
 
 from __future__ import annotations
@@ -35,18 +35,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from workbench.core.motion import Observation, channel_mask
+from workbench.core.motion import Observation, length_columns
 from workbench.engine import CleanResult, Engine, EngineInfo
 
 from ..identity import bridge_gaps, prepare
 from ..smoothing import cv_smooth, estimate_noise, measurement_variance, smoothing_ratio
 
 
-def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_angles: float = 0.0):
+def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_angles: float = 0.0,
+                    lengths=(0, 1, 2)):
     """Kalman-smooth a bridged channel matrix ``X`` (F, D) (unwrapped angles, gaps
-    interpolated linearly) with its observed ``mask`` (F, D); constant channels stay. Returns the smoothed matrix and the
-    ``(q, r)`` (D,) variances used. ``r_angles``/``q_angles`` > 0 override the estimates
-    on the angle channels (columns 3 onwards)."""
+    interpolated linearly) with its observed ``mask`` (F, D); constant channels stay.
+    Returns the smoothed matrix and the ``(q, r)`` (D,) variances used. ``r_angles`` /
+    ``q_angles`` > 0 override the estimates on the angle channels: all but the
+    ``lengths`` columns (the root position and any translations, in file units:
+    :func:`workbench.core.motion.length_columns`)."""
     Y = X.copy()
     const = X.max(axis=0) == X.min(axis=0)     # linear bridging stays within the observed range
     active = np.flatnonzero(~const)
@@ -55,7 +58,7 @@ def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_an
     r = np.full(D, np.nan)
     if active.size:
         Xa, Ma = X[:, active], mask[:, active]
-        angle = active >= 3
+        angle = ~np.isin(active, lengths)
         ra = measurement_variance(Xa, Ma)
         if r_angles > 0:
             ra[angle] = r_angles
@@ -96,10 +99,10 @@ class Kalman(Engine):
     def clean(self, observation: Observation, /) -> CleanResult:
         p = prepare(observation)
         Y, _ = smooth_channels(p.bridged, p.mask, self.params.measurement_noise_deg2,
-                               self.params.process_noise_deg2_per_frame4)
+                               self.params.process_noise_deg2_per_frame4, length_columns(observation.skeleton))
         return CleanResult(observation.motion.with_channels(p.output(Y)))
 
     @staticmethod
     def estimate_noise(observation: Observation) -> tuple[np.ndarray, np.ndarray]:
         """The ``(q, r)`` (C,) variances the estimator gives for every channel."""
-        return estimate_noise(bridge_gaps(observation), channel_mask(observation.observed))
+        return estimate_noise(bridge_gaps(observation), observation.channel_observed)

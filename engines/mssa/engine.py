@@ -14,7 +14,7 @@ import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
 from workbench.core.kinematics import inverse_kinematics
-from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
@@ -229,7 +229,7 @@ class MSSA(Engine):
         skeleton = observation.skeleton
         self.check_skeleton(skeleton)
         model = self.models_[self.params.space]
-        raw, mask = observation.motion.channels, channel_mask(observation.observed)
+        raw, mask = observation.motion.channels, observation.channel_observed
         X = bridge_gaps(observation)
         F = X.shape[0]
         if self.params.space == "angles":
@@ -269,9 +269,9 @@ class MSSA(Engine):
             world = out.reshape(F, -1, 3) + root_joint[:, None]
             reference, short, frames = ik_reference(skeleton, X, observation.observed, Y.reshape(F, -1, 3),
                                                     self.params.short_lever_cm, self.params.angle_lever_cm)
-            root, angles = inverse_kinematics(skeleton, world, reference, reference_joints=short,
-                                              reference_frames=frames)
-            out = np.concatenate([root, angles.reshape(F, -1)], axis=1)
+            root, angles, translations = inverse_kinematics(skeleton, world, reference, reference_joints=short,
+                                                            reference_frames=frames)
+            out = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations).channels
         out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
         motion = observation.motion.with_channels(out)
         return CleanResult(motion, {"robust_weight": weight})

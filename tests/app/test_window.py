@@ -147,7 +147,7 @@ def test_the_outlier_tab_shows_reported_weights_with_missing_samples_grey(window
     qtbot.wait(50)
     (image,) = window.plots.canvases[index].figure.axes[0].get_images()
     shown = image.get_array().T  # (F, C), masked where missing
-    unknown = ~channel_mask(~take.missing)
+    unknown = ~channel_mask(~take.missing, take.motion.skeleton)
     assert unknown.any() and np.array_equal(np.ma.getmaskarray(shown), unknown), "missing samples are grey"
     expected = np.ones(shown.shape)
     expected.flat[::7] = 0.02

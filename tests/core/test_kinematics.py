@@ -23,6 +23,36 @@ def test_fk_matches_a_per_joint_reference(walk):
     assert np.allclose(walk.positions[f], P, atol=1e-9)
 
 
+def test_fk_of_translated_joints_uses_their_translation_for_the_offset(studio_take):
+    """The moving Hips under joint_Root sits at its translation in its parent's frame;
+    the other joints hang from it by their (folded) offsets."""
+    from scipy.spatial.transform import Rotation
+
+    m, sk = studio_take, studio_take.skeleton
+    f = 60
+    P, R = np.zeros((sk.n_joints, 3)), [None] * sk.n_joints
+    for j, p in enumerate(sk.parents):
+        local = Rotation.from_euler(sk.rotation_order(j), m.angles_deg[f, j], degrees=True).as_matrix()
+        step = m.translations[f, sk.translated.index(j)] if j in sk.translated else sk.offsets[j]
+        if p < 0:
+            R[j], P[j] = local, m.root_positions[f]
+        else:
+            R[j], P[j] = R[p] @ local, P[p] + R[p] @ step
+    np.testing.assert_allclose(m.positions[f], P, atol=1e-9)
+    assert np.linalg.norm(m.positions[f, 1] - m.positions[0, 1]) > 10  # the Hips move
+
+
+def test_ik_recovers_a_studio_take_and_keeps_its_translations(studio_take, stretchy_take):
+    """Translated joints reach their targets: the Hips trajectory, and a stretchy bone's
+    changing length, are kept; the angles come back exactly with the true reference."""
+    for m in (studio_take, stretchy_take):
+        root, ang, trans = inverse_kinematics(m.skeleton, m.positions, m.angles_deg)
+        np.testing.assert_allclose(root, m.root_positions, atol=1e-9)
+        np.testing.assert_allclose(trans, m.translations, atol=1e-9)
+        np.testing.assert_allclose(m.replace(angles_deg=ang).positions, m.positions, atol=1e-6)
+        np.testing.assert_allclose(((ang - m.angles_deg + 180) % 360) - 180, 0, atol=1e-6)
+
+
 def test_fk_keeps_bone_lengths(walk, kick):
     for m in (walk, kick):
         L = bone_lengths(m.positions, m.skeleton.parents)
@@ -32,7 +62,7 @@ def test_fk_keeps_bone_lengths(walk, kick):
 
 def test_ik_recovers_angles_exactly_with_a_reference(walk, kick):
     for m in (walk, kick):
-        root, ang = inverse_kinematics(m.skeleton, m.positions, m.angles_deg)
+        root, ang, _ = inverse_kinematics(m.skeleton, m.positions, m.angles_deg)
         assert np.allclose(root, m.root_positions, atol=1e-9)
         assert np.allclose(ang, m.angles_deg, atol=1e-6)
 
@@ -55,8 +85,8 @@ def test_reference_joints_keep_the_reference_angles(walk):
     hand = walk.skeleton.index("LeftHand")
     ref = walk.angles_deg.copy()
     ref[:, hand] += 7.0
-    _, free = inverse_kinematics(walk.skeleton, walk.positions, ref)
-    _, kept = inverse_kinematics(walk.skeleton, walk.positions, ref, reference_joints=[hand])
+    _, free, _ = inverse_kinematics(walk.skeleton, walk.positions, ref)
+    _, kept, _ = inverse_kinematics(walk.skeleton, walk.positions, ref, reference_joints=[hand])
     np.testing.assert_array_equal(kept[:, hand], ref[:, hand])
     assert np.abs(free[:, hand] - ref[:, hand]).max() > 1.0  # aimed at the true fingers
     below = {hand}
@@ -80,13 +110,13 @@ def test_reference_frames_keep_the_reference_there_and_join_the_aim_without_a_ju
     kept = frames[:, foot]
     ref = truth.copy()
     ref[:, foot, 2] += 10.0  # turned off its toe by 10 degrees about its local x
-    _, aimed = inverse_kinematics(sk, walk.positions, ref)
-    _, out = inverse_kinematics(sk, walk.positions, ref, reference_frames=frames)
+    _, aimed, _ = inverse_kinematics(sk, walk.positions, ref)
+    _, out, _ = inverse_kinematics(sk, walk.positions, ref, reference_frames=frames)
     np.testing.assert_allclose(out[kept, foot], ref[kept, foot], atol=1e-6)
     np.testing.assert_allclose(out[~kept, foot], ref[~kept, foot], atol=1e-6)  # the departure, carried over
     assert np.abs(aimed[~kept, foot] - ref[~kept, foot]).max() > 5.0  # the aim alone loses it
     ref[:, foot, 2] += np.linspace(0.0, 10.0, walk.n_frames)  # a departure that grows from 10 to 20 degrees
-    _, out = inverse_kinematics(sk, walk.positions, ref, reference_frames=frames)
+    _, out, _ = inverse_kinematics(sk, walk.positions, ref, reference_frames=frames)
     np.testing.assert_allclose(out[kept, foot], ref[kept, foot], atol=1e-6)
     step = np.abs(np.diff(out[:, foot] - truth[:, foot], axis=0)).max(axis=1)
     assert step[48:101].max() < 2.0 * step[:48].max()
@@ -98,7 +128,7 @@ def test_reference_frames_keep_the_reference_there_and_join_the_aim_without_a_ju
 
 def test_ik_without_reference_reaches_the_positions(walk, kick):
     for m in (walk, kick):
-        root, ang = inverse_kinematics(m.skeleton, m.positions)
+        root, ang, _ = inverse_kinematics(m.skeleton, m.positions)
         P, _ = forward_kinematics(m.skeleton, root, ang)
         assert np.allclose(P, m.positions, atol=1e-6)
 
@@ -113,7 +143,7 @@ def test_ik_of_noisy_positions_keeps_bone_lengths_and_gets_close(walk, seed, sig
     m = walk.slice(0, 40)
     rng = np.random.default_rng(seed)
     noisy = m.positions + rng.normal(scale=sigma, size=m.positions.shape)
-    root, ang = inverse_kinematics(m.skeleton, noisy, m.angles_deg)
+    root, ang, _ = inverse_kinematics(m.skeleton, noisy, m.angles_deg)
     fit = Motion(m.skeleton, m.fps, root, ang)
     L = bone_lengths(fit.positions, m.skeleton.parents)
     assert np.allclose(L, np.linalg.norm(m.skeleton.offsets[1:], axis=1)[None], atol=1e-9)

@@ -49,7 +49,7 @@ def test_spatial_keeps_bone_lengths_and_moves_joints(walk):
     assert obs.observed.all() and np.isfinite(obs.motion.channels).all()
     # the result is the IK of the noisy positions, with the clean angles as reference
     noisy = noisy_positions(Work(walk), random_stream(seed, 0, "spatial"), np.full(walk.skeleton.n_joints, s))
-    root, ang = inverse_kinematics(walk.skeleton, noisy, reference_angles_deg=walk.angles_deg)
+    root, ang, _ = inverse_kinematics(walk.skeleton, noisy, reference_angles_deg=walk.angles_deg)
     assert np.array_equal(obs.motion.root_positions, root)  # the root takes its noisy value
     assert np.array_equal(obs.motion.angles_deg, ang)
     # bone lengths are exactly the skeleton's

@@ -9,7 +9,7 @@ import pytest
 from scipy.interpolate import CubicSpline
 
 from workbench.core.channels import interpolate_gaps, unwrap_deg
-from workbench.core.motion import Motion, Observation, angle_columns, channel_mask
+from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.engine import EngineError, NotFittedError
 from workbench.io import read_bvh
 from workbench.registry import create
@@ -122,7 +122,7 @@ def test_gaps_wrapping_and_input_untouched(spec, clip, learned):
     assert np.array_equal(obs.motion.channels, before, equal_nan=True)
     assert out.n_frames == clip.n_frames and out.fps == clip.fps and out.skeleton.same_layout(clip.skeleton)
     assert np.isfinite(out.channels).all()
-    mask = channel_mask(obs.observed)
+    mask = obs.channel_observed
     step = np.abs(out.channels - obs.motion.channels)[mask]
     assert step.max() < 180.0, "angles must come back on the input's branch"
 
@@ -159,7 +159,7 @@ def test_bad_parameters_are_engine_errors(spec):
 def test_interpolators_keep_observed_and_fill_with_the_interpolant(spec, kind, clip):
     obs = with_gaps(noisy(clip))
     out = create(spec).clean(obs).motion.channels
-    mask = channel_mask(obs.observed)
+    mask = obs.channel_observed
     X = obs.motion.channels
     assert np.array_equal(out[mask], X[mask]), "observed samples must come back bit for bit"
     j = 12

@@ -10,7 +10,7 @@ import torch
 from workbench import metrics, registry
 from workbench.core.channels import hole_length
 from workbench.core.kinematics import forward_kinematics
-from workbench.core.motion import Observation, channel_mask, joint_angle_columns, position_unknown
+from workbench.core.motion import Observation, joint_angle_columns, position_unknown
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
@@ -133,7 +133,7 @@ def test_keep_observed_returns_observed_entries_exactly(test_clip):
     engine = registry.create("cae:keep_observed=true")
     obs = parse_corruption("block:40+drop:0.1").apply(test_clip, seed=1)
     out = engine.clean(obs).motion.channels
-    given = channel_mask(obs.observed)
+    given = obs.channel_observed
     np.testing.assert_array_equal(out[given], obs.motion.channels[given])
     assert np.isfinite(out).all()
 

@@ -11,7 +11,7 @@ torch = pytest.importorskip("torch")
 
 from engines.ebf import EBD  # noqa: E402
 from workbench import metrics, registry  # noqa: E402
-from workbench.core.motion import Observation, channel_mask  # noqa: E402
+from workbench.core.motion import Observation  # noqa: E402
 from workbench.corruption import parse_corruption  # noqa: E402
 from workbench.engine import EngineError, NotFittedError  # noqa: E402
 
@@ -28,7 +28,7 @@ def ebd():
 def test_keeps_observed_entries_and_fills_gaps(ebd, walk):
     obs = parse_corruption("angular:0.5+gaps:0.02,30").apply(walk, seed=4)
     out = ebd.clean(obs).motion.channels
-    mask = channel_mask(obs.observed)
+    mask = obs.channel_observed
     assert ebd.info.keeps_observed and (~mask).sum() > 500
     assert np.array_equal(out[mask], obs.motion.channels[mask])
     assert np.isfinite(out).all()
@@ -64,7 +64,7 @@ def test_tiny_fit_runs(clips):
     assert engine.loss_history_.shape == (1,) and np.isfinite(engine.loss_history_).all()
     obs = parse_corruption("gaps:0.02,20").apply(tiny[0], seed=1)
     out = engine.clean(obs).motion.channels
-    mask = channel_mask(obs.observed)
+    mask = obs.channel_observed
     assert np.isfinite(out).all() and np.array_equal(out[mask], obs.motion.channels[mask])
 
 

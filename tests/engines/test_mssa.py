@@ -186,7 +186,7 @@ def test_missing_entries_are_filled_and_observed_ones_kept_close(fitted, walk):
     res = fitted.clean(Observation(walk, observed))
     out = res.motion.channels
     assert np.isfinite(out).all() and out.shape == walk.channels.shape
-    mask = channel_mask(observed)
+    mask = channel_mask(observed, walk.skeleton)
     err = np.abs((out - walk.channels + 180) % 360 - 180)
     cols = modelled_angle_columns(fitted, walk)
     # four training takes: observed samples stay within ~2 degrees, filled ones ~3 (RMS)

@@ -1,5 +1,6 @@
 import glob
 
+import bvhio  # an independent reader with per-joint translations, from PyPI
 import numpy as np
 import pytest
 from bvh import Bvh  # an independent reader from PyPI
@@ -14,15 +15,143 @@ def all_bvh(data_root):
     return sorted(glob.glob(str(data_root / "*" / "*" / "*.bvh")))
 
 
-def test_reads_every_shared_clip(data_root):
-    files = all_bvh(data_root)
-    assert len(files) >= 50
+@pytest.fixture(scope="module")
+def shared_takes(data_root):
+    """(path, Motion) of every BVH take of the three shared sets, read once."""
+    return [(f, read_bvh(f)) for f in all_bvh(data_root)]
+
+
+def test_reads_every_shared_clip(shared_takes):
+    assert len(shared_takes) >= 600
     layouts = set()
-    for f in files:
-        m = read_bvh(f)
-        assert m.fps == 120.0 and np.isfinite(m.channels).all()
-        layouts.add((m.skeleton.n_joints, m.skeleton.rotation_orders[1]))
-    assert layouts == {(31, "ZYX"), (43, "ZXY")}
+    for f, m in shared_takes:
+        assert np.isfinite(m.channels).all(), f
+        sk = m.skeleton
+        layouts.add((m.fps, sk.n_joints, sk.rotation_orders[1], tuple(sk.names[j] for j in sk.translated),
+                     sk.root_chain))
+    assert layouts == {(120.0, 31, "ZYX", (), (0,)), (120.0, 43, "ZXY", (), (0,)),
+                       (30.0, 22, "ZXY", ("Hips",), (0, 1))}
+
+
+def test_every_shared_take_writes_back_exactly(shared_takes, tmp_path):
+    """Read, write, read: the same numbers, offsets, OFFSET lines and layout, bit for bit."""
+    path = tmp_path / "again.bvh"
+    for f, m in shared_takes:
+        write_bvh(path, m)
+        back = read_bvh(path)
+        assert back.skeleton.signature() == m.skeleton.signature(), f
+        assert np.array_equal(back.channels, m.channels), f
+        assert np.array_equal(back.skeleton.offsets, m.skeleton.offsets), f
+        assert np.array_equal(back.skeleton.file_offsets, m.skeleton.file_offsets), f
+        assert back.fps == m.fps and back.skeleton.end_sites == m.skeleton.end_sites, f
+
+
+def _excerpt(path, frames) -> str:
+    """The file with only the given frames: its own header and frame lines, verbatim."""
+    lines = open(path, encoding="utf-8").read().splitlines()
+    start = next(i for i, line in enumerate(lines) if line.strip().upper() == "MOTION")
+    body = [line for line in lines[start + 3:] if line.strip()]
+    return "\n".join(lines[:start + 1] + [f"Frames: {len(frames)}", lines[start + 2]]
+                     + [body[i] for i in frames]) + "\n"
+
+
+def _bvhio_positions(text: str, tmp_path, n_frames: int) -> tuple[list[str], np.ndarray]:
+    """Joint names and world joint positions (n_frames, J, 3) as bvhio computes them."""
+    p = tmp_path / "excerpt.bvh"
+    p.write_text(text)
+    root = bvhio.readAsHierarchy(str(p))
+    joints = [j for j, _, _ in root.layout()]
+    out = []
+    for k in range(n_frames):
+        root.loadPose(k)
+        out.append([list(j.PositionWorld) for j in joints])
+    return [j.Name for j in joints], np.array(out)
+
+
+def test_forward_kinematics_matches_an_independent_reader(shared_takes, tmp_path):
+    """FK of every shared take, on its first, middle and last frames, agrees with bvhio's
+    (which, as Blender, lets a joint's position channels replace its OFFSET) to float32
+    precision: bvhio computes in single precision."""
+    for f, m in shared_takes:
+        frames = sorted({0, m.n_frames // 2, m.n_frames - 1})
+        names, theirs = _bvhio_positions(_excerpt(f, frames), tmp_path, len(frames))
+        assert names == list(m.skeleton.names), f
+        scale = m.skeleton.rest_height()
+        np.testing.assert_allclose(theirs, m.positions[frames], atol=2e-5 * scale, rtol=0, err_msg=f)
+
+
+ROOT_WITH_OFFSET = """HIERARCHY
+ROOT base
+{
+  OFFSET 10 20 30
+  CHANNELS 6 Yrotation Xposition Zrotation Yposition Xrotation Zposition
+  JOINT hip
+  {
+    OFFSET 5 0 0
+    CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+    JOINT knee
+    {
+      OFFSET 0 -40 0
+      CHANNELS 6 Zrotation Xposition Xrotation Yposition Yrotation Zposition
+      End Site
+      {
+        OFFSET 0 -40 0
+      }
+    }
+    JOINT spine
+    {
+      OFFSET 0 30 0
+      CHANNELS 3 Xrotation Zrotation Yrotation
+    }
+  }
+}
+MOTION
+Frames: 3
+Frame Time: 0.0333333
+90 1 0 2 3 4   7 100 -5 10 20 30   15 0.5 -20 -40 5 0   45 0 0
+0 1 10 2 3 4   7 110 -5 10 20 30   -15 0.5 -20 -40 5 0   0 30 0
+-90 1 20 2 3 4   7 120 -5 10 20 30   30 0.5 -10 -40 5 0   0 0 60
+"""
+
+
+def test_position_channels_replace_the_offset_on_any_joint(tmp_path):
+    """As Blender and bvhio read it: the root's OFFSET is not added to its position
+    channels; the hip's varying channels are its translation (the OFFSET 5 0 0 is
+    ignored); the knee's constant ones (0.5, -40, 0 in a mixed channel order) are folded
+    into its offset; and the file writes back with its OFFSET lines and layout."""
+    p = tmp_path / "any.bvh"
+    p.write_text(ROOT_WITH_OFFSET)
+    m = read_bvh(p)
+    sk = m.skeleton
+    assert sk.translated == (1,) and sk.root_chain == (0, 1)
+    np.testing.assert_array_equal(m.root_positions, [[1, 2, 4]] * 3)
+    np.testing.assert_array_equal(m.translations[:, 0], [[7, 100, -5], [7, 110, -5], [7, 120, -5]])
+    np.testing.assert_array_equal(sk.offsets[[0, 2, 3]], [[0, 0, 0], [0.5, -40, 0], [0, 30, 0]])
+    np.testing.assert_array_equal(sk.file_offsets[:3], [[10, 20, 30], [5, 0, 0], [0, -40, 0]])
+    np.testing.assert_array_equal(m.angles_deg[1, 0], [0, 10, 3])   # base: Y Z X order, as in the file
+    np.testing.assert_array_equal(m.angles_deg[2, 2], [30, -10, 5])  # knee: Z X Y
+    np.testing.assert_allclose(m.positions[0, 0], [1, 2, 4])          # no OFFSET added
+    names, theirs = _bvhio_positions(ROOT_WITH_OFFSET, tmp_path, 3)
+    assert names == list(sk.names)
+    np.testing.assert_allclose(theirs, m.positions, atol=1e-4)
+    out = tmp_path / "out.bvh"
+    write_bvh(out, m)
+    text = out.read_text()
+    assert "OFFSET 10 20 30" in text and "OFFSET 5 0 0" in text and "OFFSET 0 -40 0" in text
+    assert "CHANNELS 6 Zrotation Xposition Xrotation Yposition Yrotation Zposition" in text
+    back = read_bvh(out)
+    assert np.array_equal(back.channels, m.channels) and back.skeleton.signature() == sk.signature()
+
+
+def test_a_studio_take_loads_in_the_other_reader(studio_take, tmp_path):
+    path = tmp_path / "studio.bvh"
+    write_bvh(path, studio_take)
+    other = Bvh(path.read_text())
+    assert other.nframes == studio_take.n_frames and other.get_joints_names() == list(studio_take.skeleton.names)
+    hips = studio_take.skeleton.translated[0]
+    assert np.allclose(other.frame_joint_channels(5, "Hips", ["Xposition", "Yposition", "Zposition"]),
+                       studio_take.translations[5, 0], atol=1e-6)
+    assert np.allclose(other.joint_offset("Hips"), studio_take.skeleton.file_offsets[hips], atol=1e-6)
 
 
 def test_units(walk, kick):
@@ -101,7 +230,8 @@ def test_wrong_number_of_values(walk, tmp_path):
 
 def test_not_a_number(walk, tmp_path):
     lines = _small(walk).splitlines()
-    lines[-1] = lines[-1].replace(lines[-1].split()[7], "abc", 1)
+    words = lines[-1].split()
+    lines[-1] = " ".join(words[:7] + ["abc"] + words[8:])
     _expect(tmp_path, "\n".join(lines), "'abc' is not a number", line=len(lines))
 
 

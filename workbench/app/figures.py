@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.motion import channel_mask, position_unknown
+from ..core.motion import channel_count, channel_mask, position_unknown
 from ..plots import plot_bone_lengths, plot_data_weights, plot_errors, plot_filter_widths, plot_note
 from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
 from ..plots.timeline import Series
@@ -99,20 +99,21 @@ def draw_filter_widths(fig, take: Take, runs: list[EngineRun], selected: tuple[i
     a note saying none does. Returns the time axes."""
     maps = [(r.spec, r.filter_sigma_frames) for r in runs if r.filter_sigma_frames is not None]
     vmax = max((float(np.nanmax(s, initial=0.0)) for _, s in maps), default=0.0)
-    names = take.motion.skeleton.names
+    skeleton = take.motion.skeleton
     return draw_maps(fig, maps, lambda ax, spec, sigma: plot_filter_widths(
-        ax, sigma, take.fps, names, f"filter widths · {spec}", vmax, selected), "filter widths", runs)
+        ax, sigma, take.fps, skeleton.names, f"filter widths · {spec}", vmax, selected, skeleton.translated),
+        "filter widths", runs)
 
 
 def unknown_samples(take: Take, n_rows: int) -> np.ndarray | None:
     """(F, n_rows) True where a data-weight map's sample was not observed: the channel
-    layout (3 + 3J) from the missing joints, root-relative positions (3J) from the
+    layout (3 + 3J + 3T) from the missing joints, root-relative positions (3J) from the
     joints whose position depends on a missing one; None for another layout."""
     skeleton = take.motion.skeleton
-    if n_rows == 3 + 3 * skeleton.n_joints:
-        return ~channel_mask(~take.missing)
+    if n_rows == channel_count(skeleton):
+        return ~channel_mask(~take.missing, skeleton)
     if n_rows == 3 * skeleton.n_joints:
-        return np.repeat(position_unknown(~take.missing, skeleton.parents), 3, axis=1)
+        return np.repeat(position_unknown(~take.missing, skeleton.parents, skeleton.translated), 3, axis=1)
     return None
 
 
@@ -128,10 +129,10 @@ def draw_data_weights(fig, take: Take, runs: list[EngineRun], selected: tuple[in
             if unknown is not None:
                 weights[unknown] = np.nan
             maps.append((r.spec, weights))
-    names = take.motion.skeleton.names
+    skeleton = take.motion.skeleton
     return draw_maps(fig, maps, lambda ax, spec, weights: plot_data_weights(
-        ax, weights, take.fps, names, f"data weights · {spec} (dark: treated as an outlier)", selected),
-        "outlier weights", runs)
+        ax, weights, take.fps, skeleton.names, f"data weights · {spec} (dark: treated as an outlier)", selected,
+        skeleton.translated), "outlier weights", runs)
 
 
 def draw_bone_lengths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> None:

@@ -129,8 +129,9 @@ class Take:
 
     @property
     def root(self) -> np.ndarray:
-        """(F, 3) the root trajectory the camera follows (truth's when known)."""
-        return (self.truth_track or self.noisy).points[:, 0]
+        """(F, 3) the trajectory the camera follows, the body root's (the truth's when
+        known)."""
+        return (self.truth_track or self.noisy).points[:, self.motion.skeleton.body_root]
 
     @property
     def error_label(self) -> str:
@@ -213,12 +214,13 @@ def run_engine(spec: str, take: Take) -> EngineRun:
 
 def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[int]:
     """Child joints of the bones to box-plot: those ending at the selected joints, else
-    the ``n`` longest bones of the rest pose."""
-    chosen = [j for j in selected if skeleton.parents[j] >= 0][:n]
+    the ``n`` longest bones of the rest pose (a translated joint ends no bone)."""
+    bones = [j for j in range(skeleton.n_joints) if skeleton.parents[j] >= 0 and j not in skeleton.translated]
+    chosen = [j for j in selected if j in bones][:n]
     if chosen:
         return chosen
-    lengths = np.linalg.norm(skeleton.offsets, axis=1)
-    lengths[0] = -1
+    lengths = np.full(skeleton.n_joints, -1.0)
+    lengths[bones] = np.linalg.norm(skeleton.offsets[bones], axis=1)
     return sorted(np.argsort(-lengths)[:n].tolist())
 
 

@@ -5,7 +5,9 @@ Units: positions in the skeleton's file unit, angles in degrees. FK loops over j
 with the skeleton's bone lengths kept exactly: each joint's world rotation is the
 rotation that best maps its rest child offsets onto the target child directions
 (Kabsch); where a joint has a single child, the twist about that bone cannot be seen in
-positions and is taken from a reference motion (or zero).
+positions and is taken from a reference motion (or zero). A translated joint
+(``skeleton.translated``) is no bone: its translation is solved from its target, so it
+reaches it, as the root does.
 """
 
 from __future__ import annotations
@@ -31,22 +33,27 @@ def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray, joints=None) -> 
 
 
 def forward_kinematics(
-    skeleton: Skeleton, root_positions: np.ndarray, angles_deg: np.ndarray, *, local: np.ndarray | None = None
+    skeleton: Skeleton, root_positions: np.ndarray, angles_deg: np.ndarray, translations: np.ndarray | None = None,
+    *, local: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """World joint positions (F, J, 3) and world rotations (F, J, 3, 3). ``local``: the
-    angles' :func:`local_rotations`, when the caller has them already."""
+    """World joint positions (F, J, 3) and world rotations (F, J, 3, 3) from the root
+    positions (F, 3), the angles (F, J, 3) and the translations (F, T, 3) of the
+    skeleton's translated joints, which take the place of their offsets (needed when it
+    has any). ``local``: the angles' :func:`local_rotations`, when the caller has them."""
     R_local = local_rotations(skeleton, np.asarray(angles_deg, float)) if local is None else local
     F, J = R_local.shape[:2]
     R = np.empty_like(R_local)
     P = np.empty((F, J, 3))
     offsets = skeleton.offsets
+    moving = {j: k for k, j in enumerate(skeleton.translated)}
     for j, p in enumerate(skeleton.parents):
         if p < 0:
             R[:, j] = R_local[:, j]
             P[:, j] = root_positions + offsets[j]
         else:
             R[:, j] = R[:, p] @ R_local[:, j]
-            P[:, j] = P[:, p] + R[:, p] @ offsets[j]
+            local_translation = offsets[j] if j not in moving else translations[:, moving[j], :, None]
+            P[:, j] = P[:, p] + (R[:, p] @ local_translation).reshape(F, 3)
     return P, R
 
 
@@ -78,11 +85,12 @@ def _bridged_departure(R_aimed: np.ndarray, R_ref: np.ndarray, kept: np.ndarray)
 def inverse_kinematics(
     skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None, *,
     reference_local: np.ndarray | None = None, reference_joints=(), reference_frames: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint angles that place the skeleton's joints at ``positions`` (F, J, 3) as well as
     its fixed bone lengths allow.
 
-    Returns (root_positions (F, 3), angles_deg (F, J, 3)). With ``reference_angles_deg``
+    Returns (root_positions (F, 3), angles_deg (F, J, 3), translations (F, T, 3) of the
+    translated joints, which reach their targets). With ``reference_angles_deg``
     (F, J, 3), the twist about single-child bones and the rotations of leaf joints come
     from it, and every Euler triple is the representation nearest to it (continuous in
     time); without it they are zero. Exact when ``positions`` come from FK of this
@@ -107,10 +115,16 @@ def inverse_kinematics(
     kept[:, list(reference_joints)] = True
     aimed = skeleton.has_rotation & ~kept.all(axis=0)
     root_positions = positions[:, 0] - skeleton.offsets[0]
+    translations = np.empty((F, len(skeleton.translated), 3))
+    moving = {j: k for k, j in enumerate(skeleton.translated)}
     solved = []  # joints aimed at their children; the others keep the reference's angles
     for j, p in enumerate(skeleton.parents):
         R_parent = None if p < 0 else R_world[:, p]
-        P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
+        if j in moving:  # a translation, not a bone: it reaches the target
+            P[:, j] = positions[:, j]
+            translations[:, moving[j]] = np.einsum("fji,fj->fi", R_parent, positions[:, j] - P[:, p])
+        else:
+            P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
         R_ref = R_ref_local[:, j]
         ids, vecs = _effective_children(skeleton, j, R_ref_local) if aimed[j] else ([], None)
         if not ids:
@@ -138,7 +152,7 @@ def inverse_kinematics(
     for order in set(orders[j] for j in solved):
         idx = [j for j in solved if orders[j] == order]
         angles[:, idx] = nearest_euler(matrix_to_euler(R_local[:, idx], order), ref[:, idx])
-    return root_positions, angles
+    return root_positions, angles, translations
 
 
 def short_lever_joints(skeleton: Skeleton, lever_cm: float, observed: np.ndarray | None = None) -> np.ndarray:

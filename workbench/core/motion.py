@@ -1,13 +1,15 @@
 """Motion, Observation and Case: the data every layer passes around.
 
-Units: root positions in the skeleton's file unit (``skeleton.unit_cm`` cm each); joint
-angles in degrees, per joint in that joint's Euler order (``skeleton.rotation_order(j)``);
-time in frames at ``fps`` frames per second.
+Units: root positions and translations in the skeleton's file unit (``skeleton.unit_cm``
+cm each); joint angles in degrees, per joint in that joint's Euler order
+(``skeleton.rotation_order(j)``); time in frames at ``fps`` frames per second.
 
 The *channel matrix* (``Motion.channels``) is the flat (F, D) view engines filter:
-``D = 3 + 3 J``, the root position first, then each joint's three Euler angles in file
-order. ``angle_columns`` selects the joint-angle channels the papers score (every joint
-but the root, whose trajectory they treat as clean).
+``D = 3 + 3 J + 3 T``, the root position first, then each joint's three Euler angles in
+file order (:func:`angle_slice`), then the local translation of each of the T
+``skeleton.translated`` joints (none in the CMU sets; a studio export's moving Hips).
+``angle_columns`` selects the joint-angle channels the papers score (every joint but those
+of the root chain, whose motion, the body's trajectory, they treat as clean).
 """
 
 from __future__ import annotations
@@ -28,7 +30,9 @@ def _frozen(a: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Motion:
-    """A take: skeleton, fps, root positions (F, 3) and joint Euler angles (F, J, 3) in degrees.
+    """A take: skeleton, fps, root positions (F, 3), joint Euler angles (F, J, 3) in
+    degrees and the local translations (F, T, 3) of the skeleton's T ``translated`` joints
+    (default: none, for a skeleton without them).
 
     Arrays are read-only copies. Compare with :meth:`allclose`. Missing values are NaN
     (only in an :class:`Observation`).
@@ -39,19 +43,26 @@ class Motion:
     root_positions: np.ndarray
     angles_deg: np.ndarray
     name: str = ""
+    translations: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         root = _frozen(self.root_positions)
         ang = _frozen(self.angles_deg)
-        J = self.skeleton.n_joints
+        J, T = self.skeleton.n_joints, len(self.skeleton.translated)
         if root.ndim != 2 or root.shape[1] != 3:
             raise ValueError(f"root_positions must be (F, 3), got {root.shape}")
         if ang.shape != (root.shape[0], J, 3):
             raise ValueError(f"angles_deg must be (F, {J}, 3) to match root_positions, got {ang.shape}")
+        if self.translations is None and T:
+            raise ValueError(f"the skeleton has {T} translated joints: translations (F, {T}, 3) are needed")
+        trans = _frozen(np.zeros((root.shape[0], 0, 3)) if self.translations is None else self.translations)
+        if trans.shape != (root.shape[0], T, 3):
+            raise ValueError(f"translations must be (F, {T}, 3) to match root_positions, got {trans.shape}")
         if not self.fps > 0:
             raise ValueError(f"fps must be positive, got {self.fps}")
         object.__setattr__(self, "root_positions", root)
         object.__setattr__(self, "angles_deg", ang)
+        object.__setattr__(self, "translations", trans)
 
     @property
     def n_frames(self) -> int:
@@ -67,14 +78,14 @@ class Motion:
         """(F, J, 3, 3) world rotation of each joint."""
         from .kinematics import forward_kinematics
 
-        return forward_kinematics(self.skeleton, self.root_positions, self.angles_deg)[1]
+        return forward_kinematics(self.skeleton, self.root_positions, self.angles_deg, self.translations)[1]
 
     @cached_property
     def positions(self) -> np.ndarray:
         """(F, J, 3) world joint positions in file units (forward kinematics, cached)."""
         from .kinematics import forward_kinematics
 
-        pos = forward_kinematics(self.skeleton, self.root_positions, self.angles_deg)[0]
+        pos = forward_kinematics(self.skeleton, self.root_positions, self.angles_deg, self.translations)[0]
         pos.setflags(write=False)
         return pos
 
@@ -90,23 +101,31 @@ class Motion:
     # -- the channel matrix ---------------------------------------------------------
     @property
     def channels(self) -> np.ndarray:
-        """(F, 3 + 3J) root position then every joint's Euler angles (a copy)."""
-        return np.concatenate([self.root_positions, self.angles_deg.reshape(self.n_frames, -1)], axis=1)
+        """(F, 3 + 3J + 3T) root position, every joint's Euler angles, then the
+        translations (a copy)."""
+        F = self.n_frames
+        return np.concatenate([self.root_positions, self.angles_deg.reshape(F, -1), self.translations.reshape(F, -1)],
+                              axis=1)
 
     def with_channels(self, channels: np.ndarray) -> "Motion":
-        """A Motion with the same skeleton and fps from a (F', 3 + 3J) channel matrix."""
+        """A Motion with the same skeleton and fps from a (F', 3 + 3J + 3T) channel matrix."""
         channels = np.asarray(channels, dtype=float)
-        F = channels.shape[0]
-        return Motion(self.skeleton, self.fps, channels[:, :3], channels[:, 3:].reshape(F, -1, 3), self.name)
+        F, angles = channels.shape[0], angle_slice(self.skeleton)
+        if channels.ndim != 2 or channels.shape[1] != channel_count(self.skeleton):
+            raise ValueError(f"a channel matrix of this skeleton is (F, {channel_count(self.skeleton)}), "
+                             f"got {channels.shape}")
+        return Motion(self.skeleton, self.fps, channels[:, :3], channels[:, angles].reshape(F, -1, 3), self.name,
+                      channels[:, angles.stop:].reshape(F, -1, 3))
 
     def replace(self, **changes) -> "Motion":
         fields = dict(skeleton=self.skeleton, fps=self.fps, root_positions=self.root_positions,
-                      angles_deg=self.angles_deg, name=self.name)
+                      angles_deg=self.angles_deg, name=self.name, translations=self.translations)
         fields.update(changes)
         return Motion(**fields)
 
     def slice(self, start: int, stop: int | None = None) -> "Motion":
-        return self.replace(root_positions=self.root_positions[start:stop], angles_deg=self.angles_deg[start:stop])
+        return self.replace(root_positions=self.root_positions[start:stop], angles_deg=self.angles_deg[start:stop],
+                            translations=self.translations[start:stop])
 
     def allclose(self, other: "Motion", atol: float = 1e-4) -> bool:
         """Same skeleton layout and fps, and every value equal within ``atol`` (angles
@@ -118,26 +137,53 @@ class Motion:
         dang = (self.angles_deg - other.angles_deg + 180.0) % 360.0 - 180.0
         return bool(
             np.allclose(self.root_positions, other.root_positions, atol=atol, equal_nan=True)
+            and np.allclose(self.translations, other.translations, atol=atol, equal_nan=True)
             and np.all((np.abs(dang) <= atol) | (np.isnan(self.angles_deg) & np.isnan(other.angles_deg)))
         )
 
 
-def channel_mask(observed: np.ndarray) -> np.ndarray:
-    """Expand an observed mask (F, J) to the channel matrix layout (F, 3 + 3J): the root
-    position is observed where the root joint is."""
-    observed = np.asarray(observed, dtype=bool)
-    return np.concatenate([np.repeat(observed[:, :1], 3, axis=1), np.repeat(observed, 3, axis=1)], axis=1)
+def channel_count(skeleton: Skeleton) -> int:
+    """D, the width of the skeleton's channel matrix: 3 + 3J + 3T."""
+    return 3 + 3 * skeleton.n_joints + 3 * len(skeleton.translated)
 
 
-def position_unknown(observed: np.ndarray, parents) -> np.ndarray:
+def angle_slice(skeleton: Skeleton) -> slice:
+    """The channel-matrix columns of every joint's Euler angles: ``3 : 3 + 3J``."""
+    return slice(3, 3 + 3 * skeleton.n_joints)
+
+
+def length_columns(skeleton: Skeleton) -> np.ndarray:
+    """Column indices into the channel matrix of the channels in file units, not degrees:
+    the root position and the translations."""
+    return np.r_[0:3, 3 + 3 * skeleton.n_joints:channel_count(skeleton)]
+
+
+def channel_joints(skeleton: Skeleton) -> np.ndarray:
+    """(D,) the joint each channel-matrix column belongs to: the root for the root
+    position, each joint for its angles, each translated joint for its translation."""
+    J = skeleton.n_joints
+    return np.concatenate([np.zeros(3, int), np.repeat(np.arange(J), 3), np.repeat(skeleton.translated, 3)]).astype(int)
+
+
+def channel_mask(observed: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """Expand an observed mask (F, J) to the channel matrix layout (F, D): a joint's
+    angles, and its translation if it has one, are observed where it is; the root
+    position where the root is."""
+    return np.asarray(observed, dtype=bool)[:, channel_joints(skeleton)]
+
+
+def position_unknown(observed: np.ndarray, parents, translated=()) -> np.ndarray:
     """(..., J) whether a joint's position depends on missing data, given an observed
-    mask (..., J) and the skeleton's ``parents``: the root or a proper ancestor of the
-    joint is missing. (A joint's own angles move its children, not the joint.)"""
+    mask (..., J), the skeleton's ``parents`` and ``translated`` joints: the root or a
+    proper ancestor of the joint is missing, or the joint itself when it is translated.
+    (A joint's own angles move its children, not the joint.)"""
     observed = np.asarray(observed, bool)
     chain = np.empty_like(observed)  # the joint and all its ancestors observed
     unknown = np.empty_like(observed)
     for j, p in enumerate(parents):
         unknown[..., j] = ~observed[..., 0] if p < 0 else ~chain[..., p]
+        if j in translated:  # its own translation places it
+            unknown[..., j] |= ~observed[..., j]
         chain[..., j] = observed[..., j] & (True if p < 0 else chain[..., p])
     return unknown
 
@@ -150,8 +196,11 @@ def joint_angle_columns(joints) -> np.ndarray:
 
 def angle_joints(skeleton: Skeleton) -> np.ndarray:
     """Indices of the joints whose angles are the joint-angle channels: every joint with
-    a rotation but the root."""
-    return np.flatnonzero(skeleton.has_rotation[1:]) + 1
+    a rotation but those of the root chain (``skeleton.root_chain``: the root, and a
+    moving Hips under a reference root)."""
+    body = skeleton.has_rotation.copy()
+    body[list(skeleton.root_chain)] = False
+    return np.flatnonzero(body)
 
 
 def angle_columns(skeleton: Skeleton) -> np.ndarray:
@@ -165,8 +214,8 @@ class Observation:
     """What an engine may see: a corrupted Motion and the observed mask (F, J).
 
     ``observed[f, j]`` False means joint j's angles at frame f are missing (NaN in
-    ``motion``); the root position is missing where the root joint is. The ground truth
-    is not part of this type.
+    ``motion``), and its translation if it is a translated joint; the root position is
+    missing where the root joint is. The ground truth is not part of this type.
     """
 
     motion: Motion
@@ -179,10 +228,10 @@ class Observation:
             raise ValueError(f"observed mask must be (F, J) = {(F, J)}, got {obs.shape}")
         # Missing entries hold NaN, and NaN entries count as missing.
         ch = self.motion.channels
-        nan_joint = np.isnan(ch[:, 3:]).reshape(F, J, 3).any(axis=2)
-        nan_joint[:, 0] |= np.isnan(ch[:, :3]).any(axis=1)
+        nan_joint = np.zeros((F, J), bool)
+        np.logical_or.at(nan_joint, (slice(None), channel_joints(self.skeleton)), np.isnan(ch))
         obs &= ~nan_joint
-        ch[~channel_mask(obs)] = np.nan
+        ch[~channel_mask(obs, self.skeleton)] = np.nan
         obs.setflags(write=False)
         object.__setattr__(self, "observed", obs)
         object.__setattr__(self, "motion", self.motion.with_channels(ch))
@@ -199,15 +248,20 @@ class Observation:
     def has_gaps(self) -> bool:
         return not bool(self.observed.all())
 
+    @property
+    def channel_observed(self) -> np.ndarray:
+        """(F, D) the observed mask in the channel matrix layout (:func:`channel_mask`)."""
+        return channel_mask(self.observed, self.skeleton)
+
     def bridged(self) -> Motion:
         """The observed motion with its angles unwrapped robustly and its gaps bridged
         linearly (:func:`.channels.unwrap_deg`, :func:`.channels.interpolate_gaps`), so
         it is finite: what a BVH file of the observation or a drawing of it holds."""
         from .channels import interpolate_gaps, unwrap_deg
 
-        mask = channel_mask(self.observed)
+        mask, angles = self.channel_observed, angle_slice(self.skeleton)
         X = self.motion.channels
-        X[:, 3:] = unwrap_deg(X[:, 3:], mask[:, 3:], robust=True)
+        X[:, angles] = unwrap_deg(X[:, angles], mask[:, angles], robust=True)
         return self.motion.with_channels(interpolate_gaps(X, mask))
 
 

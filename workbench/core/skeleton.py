@@ -2,10 +2,21 @@
 
 Units: offsets are in the file's own length unit; ``unit_cm`` says how many centimetres
 one unit is (CMU cgspeed BVH: 1 unit = 5.64 cm), which the metrics use to report cm.
+
+Translations. A joint's position channels, on any joint, replace its OFFSET as its local
+translation, as Blender's importer reads them. The root's are the motion's root
+positions, so a root with position channels has a zero offset here (its OFFSET line is
+kept in ``file_offsets``). A non-root joint whose position channels hold one value
+throughout the take (MotionBuilder exports them on every joint) has that value folded
+into ``offsets``; one whose translation varies (a trajectory carrier under a reference
+root, a stretchy rig) is listed in ``translated`` and animated by
+``Motion.translations``. The file's OFFSET lines stay in ``file_offsets``, for writing
+the file back as it was.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -24,9 +35,14 @@ class Skeleton:
     """An immutable joint hierarchy.
 
     names: J joint names; parents: J parent indices (parents[j] < j, root -1);
-    offsets: (J, 3) rest offsets from the parent; channels: per joint the channel names as
-    written in the file (root: 3 positions + 3 rotations; others: 3 rotations);
-    end_sites: (parent joint index, offset (3,)) for each End Site; unit_cm: cm per unit.
+    offsets: (J, 3) each joint's local translation from its parent where no channel
+    animates it (see the module docstring; zero for a root with position channels);
+    channels: per joint the channel names as written in the file, in the file's order
+    (0 or 3 rotations and 0 or 3 positions, on any joint); end_sites: (parent joint index,
+    offset (3,)) for each End Site; unit_cm: cm per unit; translated: the non-root joints,
+    ascending, whose translation ``Motion.translations`` animates (they have position
+    channels); file_offsets: (J, 3) the OFFSET lines of the file (default ``offsets``;
+    only the rows of joints with position channels may differ, as FK ignores those lines).
     """
 
     names: tuple[str, ...]
@@ -35,14 +51,22 @@ class Skeleton:
     channels: tuple[tuple[str, ...], ...]
     end_sites: tuple[tuple[int, tuple[float, float, float]], ...] = ()
     unit_cm: float = field(default=0.0)
+    translated: tuple[int, ...] = ()
+    file_offsets: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         J = len(self.names)
-        offsets = np.array(self.offsets, dtype=float).reshape(J, 3)
-        offsets.setflags(write=False)
-        object.__setattr__(self, "offsets", offsets)
         if len(self.parents) != J or len(self.channels) != J:
             raise ValueError("names, parents and channels must have one entry per joint")
+        offsets = np.array(self.offsets, dtype=float).reshape(J, 3)
+        positioned = self.has_position
+        written = offsets if self.file_offsets is None else np.array(self.file_offsets, dtype=float).reshape(J, 3)
+        written = np.where(positioned[:, None], written, offsets)  # only position channels replace OFFSET
+        for a in (offsets, written):
+            a.setflags(write=False)
+        object.__setattr__(self, "offsets", offsets)
+        object.__setattr__(self, "file_offsets", written)
+        object.__setattr__(self, "translated", tuple(int(j) for j in self.translated))
         if J == 0 or self.parents[0] != -1:
             raise ValueError("the first joint must be the root (parent -1)")
         for j, p in enumerate(self.parents[1:], start=1):
@@ -51,14 +75,21 @@ class Skeleton:
         if len(set(self.names)) != J:
             raise ValueError("joint names must be unique")
         for j, ch in enumerate(self.channels):
-            self._validate_channels(self.names[j], j, ch)
+            self._validate_channels(self.names[j], ch)
+        if J and positioned[0] and np.any(offsets[0] != 0):
+            raise ValueError(f"root {self.names[0]!r} has position channels, so its offset must be zero "
+                             "(its OFFSET line goes in file_offsets)")
+        if list(self.translated) != sorted(set(self.translated)) or not all(
+                0 < j < J and positioned[j] for j in self.translated):
+            raise ValueError(f"translated joints must be ascending non-root joints with position channels, "
+                             f"got {self.translated}")
         if self.unit_cm <= 0:
             object.__setattr__(self, "unit_cm", guess_unit_cm(self))
 
     @staticmethod
-    def _validate_channels(name: str, index: int, channels: tuple[str, ...]) -> None:
-        """Raise ValueError unless a joint's channels are 0 or 3 distinct rotations, plus
-        all three positions on the root (index 0) only."""
+    def _validate_channels(name: str, channels: tuple[str, ...]) -> None:
+        """Raise ValueError unless a joint's channels are 0 or 3 distinct rotations and 0
+        or 3 distinct positions, in any order."""
         rot = [c for c in channels if c in ROTATION_CHANNELS]
         pos = [c for c in channels if c in POSITION_CHANNELS]
         unknown = [c for c in channels if c not in ROTATION_CHANNELS + POSITION_CHANNELS]
@@ -66,8 +97,8 @@ class Skeleton:
             raise ValueError(f"joint {name!r}: unknown channel name(s) {unknown}")
         if len(rot) not in (0, 3) or len(set(rot)) != len(rot):
             raise ValueError(f"joint {name!r}: needs 0 or 3 distinct rotation channels, has {rot}")
-        if pos and (index != 0 or sorted(pos) != sorted(POSITION_CHANNELS)):
-            raise ValueError(f"joint {name!r}: position channels are supported on the root only, all three of them")
+        if len(pos) not in (0, 3) or len(set(pos)) != len(pos):
+            raise ValueError(f"joint {name!r}: needs 0 or 3 distinct position channels, has {pos}")
 
     # -- derived layout -------------------------------------------------------------
     @property
@@ -92,6 +123,32 @@ class Skeleton:
         return out
 
     @cached_property
+    def has_position(self) -> np.ndarray:
+        """(J,) bool, read-only: the joint has position channels in the file."""
+        out = np.array([any(c in POSITION_CHANNELS for c in ch) for ch in self.channels])
+        out.setflags(write=False)
+        return out
+
+    @cached_property
+    def root_chain(self) -> tuple[int, ...]:
+        """The root and the translated joints it carries one by one: each the only child of
+        the one before, down to the first that branches or is not translated. ``(0,)`` for
+        CMU's Hips; ``(0, 1)`` for a MotionBuilder export whose reference node
+        ``joint_Root`` carries the moving ``Hips``. These joints place and turn the whole
+        body: their motion is its trajectory, which the papers treat as clean and the
+        root-aligned scores leave out."""
+        chain = [0]
+        while len(self.children[chain[-1]]) == 1 and self.children[chain[-1]][0] in self.translated:
+            chain.append(self.children[chain[-1]][0])
+        return tuple(chain)
+
+    @property
+    def body_root(self) -> int:
+        """The last joint of :attr:`root_chain` (the pelvis): where the root-aligned scores
+        align the body."""
+        return self.root_chain[-1]
+
+    @cached_property
     def children(self) -> tuple[tuple[int, ...], ...]:
         """Each joint's child indices."""
         kids: list[list[int]] = [[] for _ in self.names]
@@ -105,13 +162,16 @@ class Skeleton:
         """Per joint j, the descendants whose positions j's rotation fixes, each with the
         zero-offset joints on the way from j to it (outermost first). A child with a zero
         offset sits on j itself and says nothing about j's rotation: the walk looks
-        through it to its own children."""
+        through it to its own children. A translated child moves on its own and says
+        nothing either, nor do the joints below it."""
         out = []
         for j in range(self.n_joints):
             aimed: list[tuple[int, tuple[int, ...]]] = []
-            stack = [(c, ()) for c in self.children[j]]
+            stack = [(c, ()) for c in self.children[j] if c not in self.translated]
             while stack:
                 c, via = stack.pop()
+                if c in self.translated:
+                    continue
                 if np.linalg.norm(self.offsets[c]) > 1e-9:
                     aimed.append((c, via))
                 else:
@@ -131,9 +191,12 @@ class Skeleton:
         return tuple((p, j) for j, p in enumerate(self.parents) if p >= 0)
 
     def signature(self) -> str:
-        """A short string naming the topology and channel layout (not the bone lengths):
-        two skeletons with equal signatures can share a trained engine."""
+        """A short string naming the topology and channel layout (not the bone lengths),
+        and the translated joints, which widen the channel matrix: two skeletons with
+        equal signatures can share a trained engine."""
         parts = [f"{n}<{p}>{''.join(c[0] + c[1] for c in ch)}" for n, p, ch in zip(self.names, self.parents, self.channels)]
+        if self.translated:
+            parts.append("translated:" + ",".join(self.names[j] for j in self.translated))
         return ";".join(parts)
 
     def same_layout(self, other: "Skeleton") -> bool:
@@ -143,7 +206,11 @@ class Skeleton:
         return self.same_layout(other) and np.allclose(self.offsets, other.offsets, atol=atol)
 
     def with_offsets(self, offsets: np.ndarray) -> "Skeleton":
-        return Skeleton(self.names, self.parents, offsets, self.channels, self.end_sites, self.unit_cm)
+        return self.replace(offsets=offsets)
+
+    def replace(self, **changes) -> "Skeleton":
+        """A copy with the given fields changed (validated as a new Skeleton)."""
+        return dataclasses.replace(self, **changes)
 
     def rest_height(self) -> float:
         """Vertical extent of the rest pose (file units), end sites included; Y is up."""

@@ -1,10 +1,14 @@
 """BVH read and write.
 
-Reads any BVH whose joints carry three rotation channels (any Euler order, per joint)
-and whose root may carry three position channels: CRLF, LF and mixed line endings,
-tabs or spaces. Angles stay in degrees, lengths in the file's unit. Every problem is a
-:class:`MotionFileError` naming the file and line. Writing is atomic and keeps the
-channel layout and Euler orders of the skeleton.
+Reads any BVH whose joints carry three rotation channels or none and three position
+channels or none, in any order on any joint (MotionBuilder exports all six on every
+joint): CRLF, LF and mixed line endings, tabs or spaces. A joint's position channels
+replace its OFFSET as its local translation, as Blender reads them; where they hold one
+value throughout the take it is folded into the skeleton, where they vary the joint is
+translated (:mod:`workbench.core.skeleton`). Angles stay in degrees, lengths in the
+file's unit. Every problem is a :class:`MotionFileError` naming the file and line.
+Writing is atomic and keeps the channel layout, the Euler orders and the OFFSET lines
+of the skeleton, so a file read and written back holds the same numbers.
 """
 
 from __future__ import annotations
@@ -99,7 +103,7 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
             chans.append(ch)
         channels.append(tuple(chans))
         try:
-            Skeleton._validate_channels(name, index, tuple(chans))
+            Skeleton._validate_channels(name, tuple(chans))
         except ValueError as err:
             raise MotionFileError(path, str(err), line) from None
         while True:
@@ -122,7 +126,11 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
     if tokens.pos < len(tokens.items):
         tok, line = tokens.items[tokens.pos]
         raise MotionFileError(path, f"unexpected {tok!r} after the root joint's closing brace", line)
-    return Skeleton(tuple(names), tuple(parents), np.array(offsets), tuple(channels), tuple(end_sites))
+    # The root's position channels are its whole translation: they replace its OFFSET.
+    file_offsets = np.array(offsets, float)
+    root_offset = np.zeros(3) if any(c in POSITION_CHANNELS for c in channels[0]) else file_offsets[0]
+    return Skeleton(tuple(names), tuple(parents), np.vstack([root_offset, file_offsets[1:]]), tuple(channels),
+                    tuple(end_sites), file_offsets=file_offsets)
 
 
 def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -> tuple[float, np.ndarray]:
@@ -211,61 +219,82 @@ def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
         raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
     lines = text.splitlines()
     tokens = _Tokens(lines, str(path))
-    skeleton = _parse_hierarchy(tokens)
+    header = _parse_hierarchy(tokens)
     if tokens.motion_line is None:
         raise MotionFileError(path, "no MOTION section: the file ends after the hierarchy", len(lines))
-    frame_time, values = _parse_motion(lines, tokens.motion_line, skeleton, str(path))
-    if unit_cm is not None:
-        skeleton = Skeleton(skeleton.names, skeleton.parents, skeleton.offsets, skeleton.channels,
-                            skeleton.end_sites, unit_cm)
-    root, angles = _split_values(skeleton, values)
-    return Motion(skeleton, fps_from_frame_time(frame_time), root, angles, name=path.stem)
+    frame_time, values = _parse_motion(lines, tokens.motion_line, header, str(path))
+    motion = _motion_from_values(header, fps_from_frame_time(frame_time), values, name=path.stem)
+    return motion if unit_cm is None else motion.replace(skeleton=motion.skeleton.replace(unit_cm=unit_cm))
 
 
-def _column_layout(skeleton: Skeleton) -> tuple[list[int], list[tuple[int, int]]]:
-    """For each file column: where it goes. Returns (root position columns in x, y, z
-    order, [(joint, slot)] for each rotation column), both as file column indices."""
-    root_cols = [0, 0, 0]
-    rot_cols: list[tuple[int, int, int]] = []
-    col = 0
+def _column_layout(skeleton: Skeleton) -> list[tuple[int, bool, int]]:
+    """For each file column, in order: (joint, is a position channel, slot), the slot
+    being the axis (0 x, 1 y, 2 z) of a position and the place in the joint's Euler
+    order of a rotation."""
+    layout = []
     for j, chans in enumerate(skeleton.channels):
-        slot = 0
+        rotations = [c for c in chans if c in ROTATION_CHANNELS]
         for ch in chans:
             if ch in POSITION_CHANNELS:
-                root_cols[POSITION_CHANNELS.index(ch)] = col
+                layout.append((j, True, POSITION_CHANNELS.index(ch)))
             else:
-                rot_cols.append((col, j, slot))
-                slot += 1
-            col += 1
-    return root_cols, rot_cols
+                layout.append((j, False, rotations.index(ch)))
+    return layout
 
 
-def _split_values(skeleton: Skeleton, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    F = values.shape[0]
-    root_cols, rot_cols = _column_layout(skeleton)
-    has_pos = any(c in POSITION_CHANNELS for c in skeleton.channels[0])
-    root = values[:, root_cols] if has_pos else np.zeros((F, 3))
-    angles = np.zeros((F, skeleton.n_joints, 3))
-    for col, j, slot in rot_cols:
-        angles[:, j, slot] = values[:, col]
-    return root, angles
+#: position channels that stay this close (file units) to their first frame's value hold a
+#: constant translation: MotionBuilder prints 6 significant digits, so a translation of
+#: -5.5e-07 cm reads as -5.51765e-07 in one frame and -5.51764e-07 in the next
+CONSTANT_UNITS = 1e-6
+
+
+def _motion_from_values(header: Skeleton, fps: float, values: np.ndarray, name: str = "") -> Motion:
+    """The Motion of a file's frame values (F, D) in the column layout of ``header``, the
+    skeleton as the hierarchy gives it: a non-root joint's position channels that stay
+    within ``CONSTANT_UNITS`` of frame 0's values are folded into its offset (and written
+    back as those), the others make it translated. The unit is guessed on the resulting
+    rest pose."""
+    F, J = values.shape[0], header.n_joints
+    root = np.zeros((F, 3))
+    angles = np.zeros((F, J, 3))
+    local = np.zeros((F, J, 3))  # the position channels of every joint
+    for col, (j, is_position, slot) in enumerate(_column_layout(header)):
+        target = local if is_position else angles
+        target[:, j, slot] = values[:, col]
+    if header.has_position[0]:
+        root = local[:, 0]
+    spread = np.abs(local - local[:1]).max(axis=0).max(axis=1)  # NaN (missing) compares as moving
+    moving = [j for j in np.flatnonzero(header.has_position[1:]) + 1 if not spread[j] <= CONSTANT_UNITS]
+    offsets = np.array(header.offsets)
+    fixed = header.has_position.copy()
+    fixed[[0, *moving]] = False
+    offsets[fixed] = local[0, fixed]
+    skeleton = header.replace(offsets=offsets, translated=tuple(moving), unit_cm=0.0)
+    return Motion(skeleton, fps, root, angles, name, translations=local[:, moving])
 
 
 def motion_values(motion: Motion) -> np.ndarray:
-    """The (F, D) frame values in the file's column layout."""
+    """The (F, D) frame values in the file's column layout: a folded joint's position
+    channels hold its offset in every frame."""
     sk = motion.skeleton
-    D = sum(len(ch) for ch in sk.channels)
-    values = np.zeros((motion.n_frames, D))
-    root_cols, rot_cols = _column_layout(sk)
-    if any(c in POSITION_CHANNELS for c in sk.channels[0]):
-        values[:, root_cols] = motion.root_positions
-    for col, j, slot in rot_cols:
-        values[:, col] = motion.angles_deg[:, j, slot]
+    local = np.broadcast_to(sk.offsets, (motion.n_frames, sk.n_joints, 3)).copy()
+    local[:, 0] = motion.root_positions
+    local[:, list(sk.translated)] = motion.translations
+    layout = _column_layout(sk)
+    values = np.zeros((motion.n_frames, len(layout)))
+    for col, (j, is_position, slot) in enumerate(layout):
+        values[:, col] = (local if is_position else motion.angles_deg)[:, j, slot]
     return values
 
 
-def format_bvh(motion: Motion, precision: int = 6) -> str:
-    """The BVH text of a motion (LF line endings, tab indentation)."""
+#: significant digits of every number written: each number of a file with at most this
+#: many (studio exports print 6, the cgspeed conversions up to 7) is written back exactly
+DIGITS = 10
+
+
+def format_bvh(motion: Motion, digits: int = DIGITS) -> str:
+    """The BVH text of a motion (LF line endings, tab indentation), each number to
+    ``digits`` significant digits."""
     sk = motion.skeleton
     values = motion_values(motion)
     if not np.isfinite(values).all():
@@ -278,12 +307,12 @@ def format_bvh(motion: Motion, precision: int = 6) -> str:
     children = sk.children
 
     def fmt(v) -> str:
-        return " ".join(f"{x:.{precision}f}" for x in v)
+        return " ".join(f"{x:.{digits}g}" for x in v)
 
     def write_joint(j: int, depth: int) -> None:
         ind = "\t" * depth
         out.write(f"{ind}{'ROOT' if j == 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
-        out.write(f"{ind}\tOFFSET {fmt(sk.offsets[j])}\n")
+        out.write(f"{ind}\tOFFSET {fmt(sk.file_offsets[j])}\n")
         out.write(f"{ind}\tCHANNELS {len(sk.channels[j])}{''.join(' ' + c for c in sk.channels[j])}\n")
         for c in children[j]:
             write_joint(c, depth + 1)
@@ -293,12 +322,12 @@ def format_bvh(motion: Motion, precision: int = 6) -> str:
 
     write_joint(0, 0)
     out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {1.0 / motion.fps:.7f}\n")
-    np.savetxt(out, values, fmt=f"%.{precision}f", delimiter=" ")
+    np.savetxt(out, values, fmt=f"%.{digits}g", delimiter=" ")
     return out.getvalue()
 
 
-def write_bvh(path: str | Path, motion: Motion, precision: int = 6) -> None:
+def write_bvh(path: str | Path, motion: Motion, digits: int = DIGITS) -> None:
     """Write ``motion`` as BVH, atomically (no partial file on error)."""
-    text = format_bvh(motion, precision)
+    text = format_bvh(motion, digits)
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8", newline="\n")

@@ -26,13 +26,15 @@ NARROWEST_FRAMES = 0.2
 MISSING_COLOUR = "#cfcfcf"
 
 
-def channel_groups(names, n_channels: int) -> list[tuple[str, int, int, int | None]]:
+def channel_groups(names, n_channels: int, translated=()) -> list[tuple[str, int, int, int | None]]:
     """(label, first row, stop row, joint index or None) of each group of rows: the root
-    position then each joint's three angles when the matrix is the channel layout (3 +
-    3J), each joint's three coordinates when it has 3J rows, else one group."""
-    J = len(names)
-    if n_channels == 3 + 3 * J:
-        return [("root position", 0, 3, None)] + [(n, 3 + 3 * j, 6 + 3 * j, j) for j, n in enumerate(names)]
+    position, each joint's three angles, then the translation of each ``translated``
+    joint (indices) when the matrix is the channel layout (3 + 3J + 3T), each joint's
+    three coordinates when it has 3J rows, else one group."""
+    J, T = len(names), len(translated)
+    if n_channels == 3 + 3 * J + 3 * T:
+        return ([("root position", 0, 3, None)] + [(n, 3 + 3 * j, 6 + 3 * j, j) for j, n in enumerate(names)]
+                + [(f"{names[j]} translation", 3 + 3 * (J + k), 6 + 3 * (J + k), j) for k, j in enumerate(translated)])
     if n_channels == 3 * J and J:
         return [(n, 3 * j, 3 + 3 * j, j) for j, n in enumerate(names)]
     return [("channels", 0, n_channels, None)]
@@ -50,10 +52,11 @@ def label_rows(n: int, first: set[int], room: float) -> list[int]:
 
 
 def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: str, bar_ticks, names=(),
-                     title: str = "", highlight=()) -> None:
+                     title: str = "", highlight=(), translated=()) -> None:
     """Heatmap of ``values`` (F, C) over time (s) with a colour bar (``norm``, ``cmap``,
     ticks at ``bar_ticks``, plain numbers); rows labelled by joint (:func:`channel_groups`
-    of the joints ``names``), those of the joints in ``highlight`` (indices) in bold."""
+    of the joints ``names`` and the ``translated`` ones), those of the joints in
+    ``highlight`` (indices) in bold."""
     F, C = values.shape
     im = ax.imshow(values.T, aspect="auto", interpolation="nearest", cmap=cmap, extent=(0, F / fps, C, 0), norm=norm)
     bar = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04)
@@ -61,7 +64,7 @@ def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: 
     bar.ax.yaxis.set_major_formatter("{x:g}")
     bar.ax.yaxis.set_minor_formatter("")
     bar.set_label(bar_label)
-    groups = channel_groups(names, C)
+    groups = channel_groups(names, C, translated)
     chosen = set(highlight)
     bold = {i for i, g in enumerate(groups) if g[3] in chosen}
     keep = label_rows(len(groups), bold, ax.get_window_extent().height / LABEL_PX)
@@ -75,7 +78,7 @@ def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: 
 
 
 def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title: str = "",
-                       vmax: float | None = None, highlight=()) -> None:
+                       vmax: float | None = None, highlight=(), translated=()) -> None:
     """Heatmap of ``sigma_frames`` (F, C) with a logarithmic colour bar from
     :data:`NARROWEST_FRAMES` to ``vmax`` (default: the widest)."""
     from matplotlib.colors import LogNorm
@@ -83,10 +86,11 @@ def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title
     top = vmax or float(np.nanmax(sigma_frames, initial=0.0))
     norm = LogNorm(NARROWEST_FRAMES, max(top, 10 * NARROWEST_FRAMES), clip=True)
     ticks = [t for t in (0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500) if norm.vmin <= t <= norm.vmax]
-    plot_channel_map(ax, sigma_frames, fps, norm, "viridis", "σ (frames)", ticks, names, title, highlight)
+    plot_channel_map(ax, sigma_frames, fps, norm, "viridis", "σ (frames)", ticks, names, title, highlight, translated)
 
 
-def plot_data_weights(ax, weights: np.ndarray, fps: float, names=(), title: str = "", highlight=()) -> None:
+def plot_data_weights(ax, weights: np.ndarray, fps: float, names=(), title: str = "", highlight=(),
+                      translated=()) -> None:
     """Heatmap of a robust estimator's data ``weights`` (F, C), 0 (dark red: an outlier)
     to 1 (white: taken at face value); NaN (missing) in :data:`MISSING_COLOUR`."""
     import matplotlib
@@ -94,4 +98,4 @@ def plot_data_weights(ax, weights: np.ndarray, fps: float, names=(), title: str 
 
     cmap = matplotlib.colormaps["Reds_r"].with_extremes(bad=MISSING_COLOUR)
     plot_channel_map(ax, np.ma.masked_invalid(weights), fps, Normalize(0.0, 1.0), cmap, "data weight",
-                     [0, 0.5, 1], names, title, highlight)
+                     [0, 0.5, 1], names, title, highlight, translated)

@@ -4,27 +4,29 @@
 :data:`CHECKS` and raises AssertionError naming the engine and the broken rule.
 ``make_engine()`` must return a ready engine (trained engines already fitted or
 loaded); ``clean_motion`` is a short clean take of the engine's skeleton and
-``foreign_motion`` a take of another skeleton layout.
+``foreign_motion`` a take of another skeleton layout, or a list of such takes (one per
+layout: a skeleton-agnostic engine must clean each, a trained one refuse each).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
 from .. import registry
-from ..core.motion import Motion, Observation, channel_mask
+from ..core.motion import Motion, Observation, angle_columns, angle_slice, length_columns
 from ..engine import CleanResult, EngineError, EngineInfo, NotFittedError
 
 
 def _noisy(motion: Motion, seed: int = 7, gaps: bool = False) -> Observation:
-    """A noisy observation (0.5 x channel std Gaussian noise on every non-root angle),
+    """A noisy observation (0.5 x channel std Gaussian noise on every joint-angle channel),
     optionally with a 20-frame gap in three joints and a few scattered missing samples."""
     rng = np.random.default_rng(seed)
     X = motion.channels
-    std = X[:, 6:].std(axis=0)
-    X[:, 6:] += rng.normal(size=X[:, 6:].shape) * 0.5 * std
+    cols = angle_columns(motion.skeleton)
+    std = X[:, cols].std(axis=0)
+    X[:, cols] += rng.normal(size=(X.shape[0], cols.size)) * 0.5 * std
     observed = np.ones((motion.n_frames, motion.skeleton.n_joints), bool)
     if gaps:
         F = motion.n_frames
@@ -73,27 +75,29 @@ def check_keeps_observed(engine, name: str, motion: Motion, **_) -> None:
         return
     obs = _noisy(motion, gaps=True)
     out = engine.clean(obs).motion.channels
-    mask = channel_mask(obs.observed)
-    assert np.allclose((out - obs.motion.channels)[:, :3][mask[:, :3]], 0, atol=1e-6), \
-        f"{name}: says keeps_observed but moved observed root positions"
-    ang = ((out - obs.motion.channels)[:, 3:] + 180.0) % 360.0 - 180.0
-    assert np.allclose(ang[mask[:, 3:]], 0, atol=1e-6), f"{name}: says keeps_observed but changed observed angles"
+    mask, lengths, angles = obs.channel_observed, length_columns(motion.skeleton), angle_slice(motion.skeleton)
+    assert np.allclose((out - obs.motion.channels)[:, lengths][mask[:, lengths]], 0, atol=1e-6), \
+        f"{name}: says keeps_observed but moved observed root positions or translations"
+    ang = ((out - obs.motion.channels)[:, angles] + 180.0) % 360.0 - 180.0
+    assert np.allclose(ang[mask[:, angles]], 0, atol=1e-6), f"{name}: says keeps_observed but changed observed angles"
 
 
-def check_foreign_skeleton(engine, name: str, motion: Motion, foreign: Motion | None = None, **_) -> None:
-    if foreign is None:
-        return
-    obs = _noisy(foreign)
-    if engine.info.trainable:
+def check_foreign_skeleton(engine, name: str, motion: Motion,
+                           foreign: Motion | Sequence[Motion] | None = None, **_) -> None:
+    for other in [foreign] if isinstance(foreign, Motion) else foreign or ():
+        if engine.info.trainable:
+            try:
+                engine.clean(_noisy(other))
+            except EngineError as err:
+                assert "skeleton" in str(err), f"{name}: the foreign-skeleton error should say so: {err}"
+                continue
+            raise AssertionError(f"{name}: a trained engine must refuse a skeleton it was not trained for")
+        layout = f"{other.skeleton.n_joints} joints rooted at {other.skeleton.names[0]!r}"
         try:
-            engine.clean(obs)
-        except EngineError as err:
-            assert "skeleton" in str(err), f"{name}: the foreign-skeleton error should say so: {err}"
-            return
-        raise AssertionError(f"{name}: a trained engine must refuse a skeleton it was not trained for")
-    res = engine.clean(obs)
-    assert _same_frame(res.motion, foreign) and np.isfinite(res.motion.channels).all(), \
-        f"{name}: skeleton-agnostic engine failed on a second skeleton"
+            check_shapes_and_finite(engine, name, other)
+            check_keeps_observed(engine, name, other)
+        except AssertionError as err:
+            raise AssertionError(f"{err} (on another skeleton: {layout})") from None
 
 
 def check_spec_round_trip(engine, name: str, **_) -> None:
@@ -124,7 +128,7 @@ CHECKS: dict[str, Callable] = {
 }
 
 
-def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | None = None,
+def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | Sequence[Motion] | None = None,
                  checks: list[str] | None = None) -> None:
     """Run the conformance checks (all, or the named ones) on one engine."""
     engine = make_engine()
@@ -133,16 +137,19 @@ def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | None =
         CHECKS[key](engine, name=name, motion=motion, foreign=foreign)
 
 
-def conformance_clips(root=None, frames: int = 150) -> tuple[Motion, Motion | None]:
-    """Two short clean takes of different skeleton layouts from the data root: the first
-    training clip (the layout trained engines are fitted on; a CMU take with the team's
-    data) and the first clip of any other layout (a cmu-daz take), or None."""
+def conformance_clips(root=None, frames: int = 150, dataset: str | None = None) -> tuple[Motion, list[Motion]]:
+    """Short clean takes of the data root: the first training clip (of ``dataset`` when
+    given: the layout trained engines are fitted on; ``"cmu"`` with the team's data) and
+    a take of each other dataset whose skeleton has another layout (with the team's
+    data, a cmu-daz take and a Bandai take, whose Hips is translated)."""
     from ..data import catalogue
 
-    clips = sorted(catalogue(root), key=lambda c: c.split != "train")
+    clips = sorted(catalogue(root), key=lambda c: (c.dataset != dataset, c.split != "train"))
     primary = clips[0].load().slice(0, frames)
-    for clip in clips[1:]:
-        m = clip.load()
-        if not m.skeleton.same_layout(primary.skeleton):
-            return primary, m.slice(0, frames)
-    return primary, None
+    layouts, foreign = {primary.skeleton.signature()}, []
+    for name in dict.fromkeys(c.dataset for c in clips):  # a take long enough of each dataset
+        m = next((m for c in clips if c.dataset == name and (m := c.load()).n_frames >= frames), None)
+        if m is not None and m.skeleton.signature() not in layouts:
+            layouts.add(m.skeleton.signature())
+            foreign.append(m.slice(0, frames))
+    return primary, foreign
