@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.core.motion import channel_mask
 from workbench.corruption import Gaps, parse_corruption, random_stream
+from workbench.corruption.base import Work
 
 
 def _runs(column: np.ndarray) -> list[tuple[int, int]]:
@@ -18,13 +18,13 @@ def _runs(column: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _check_nan_matches_mask(obs):
-    assert np.array_equal(np.isnan(obs.motion.channels), ~channel_mask(obs.observed))
+    assert np.array_equal(np.isnan(obs.motion.channels), ~obs.channel_observed)
 
 
 def test_gaps_start_rate_and_mean_length(long_walk):
     F, J = long_walk.n_frames, long_walk.skeleton.n_joints
     model = Gaps(0.01, 12.0, 10**6)  # uncapped
-    frames, joints, lengths = model.events(F, J, random_stream(0, 0, "gaps"))
+    frames, joints, lengths = model.events(Work(long_walk), random_stream(0, 0, "gaps"))
     assert abs(frames.size / (F * (J - 1)) / 0.01 - 1) < 0.1
     assert joints.min() >= 1
     assert lengths.min() >= 1
@@ -37,7 +37,7 @@ def test_gaps_mask_is_the_union_of_the_events(walk):
     F, J = walk.n_frames, walk.skeleton.n_joints
     seed = 5
     obs = parse_corruption("gaps:0.02,8,20").apply(walk, seed=seed)
-    frames, joints, lengths = Gaps(0.02, 8, 20).events(F, J, random_stream(seed, 0, "gaps"))
+    frames, joints, lengths = Gaps(0.02, 8, 20).events(Work(walk), random_stream(seed, 0, "gaps"))
     expect = np.ones((F, J), bool)
     for f, j, n in zip(frames, joints, lengths):
         expect[f:f + n, j] = False
@@ -65,8 +65,8 @@ def test_gaps_measured_from_the_mask(long_walk):
 
 
 def test_gaps_cap(long_walk):
-    F, J = long_walk.n_frames, long_walk.skeleton.n_joints
-    _, _, lengths = Gaps(0.01, 50, 7).events(F, J, random_stream(1, 0, "gaps"))
+    J = long_walk.skeleton.n_joints
+    _, _, lengths = Gaps(0.01, 50, 7).events(Work(long_walk), random_stream(1, 0, "gaps"))
     assert lengths.max() == 7 and lengths.min() >= 1
     # with rare gaps, runs in the mask respect the cap too (unless two overlap)
     obs = parse_corruption("gaps:0.0005,50,7").apply(long_walk, seed=1)
@@ -148,6 +148,6 @@ def test_drop_fraction(long_walk):
 def test_gap_models_do_not_change_observed_values(walk):
     for text in ("gaps:0.02", "block:30", "joints:4", "drop:0.3"):
         obs = parse_corruption(text).apply(walk, seed=1)
-        m = channel_mask(obs.observed)
+        m = obs.channel_observed
         assert np.array_equal(obs.motion.channels[m], walk.channels[m]), text
         assert obs.observed[:, 0].all() or text.startswith("block")

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from workbench.core.motion import Case, Observation, channel_mask
+from workbench.core.motion import Case, Observation
 from workbench.corruption import (
     MODELS,
     Corruption,
@@ -21,7 +21,7 @@ from workbench.corruption import (
     parse_corruption,
     random_stream,
 )
-from workbench.corruption.base import Work
+from workbench.corruption.base import FRAME_KINDS, Seconds, Work
 
 EXAMPLES = {
     "angular:0.5": "angular:0.5",
@@ -97,8 +97,23 @@ _VALUES = {
     "mean-frames": st.floats(1, 1e4) | st.integers(1, 10_000),
     "count": st.integers(0, 10**6),
     "frames": st.integers(1, 10**6),
+    "frame-count": st.integers(0, 10**6),
     "frame": st.integers(0, 10**6),
 }
+_SECONDS = st.floats(1e-3, 1e3) | st.integers(1, 1000)
+
+
+def _draw_value(draw, kind):
+    """A parameter value, or for one counted in frames sometimes a Seconds."""
+    if kind in FRAME_KINDS and draw(st.booleans()):
+        return Seconds(float(draw(_SECONDS)))
+    return draw(_VALUES[kind])
+
+
+def _text(draw, value) -> str:
+    if isinstance(value, Seconds):
+        return draw(st.sampled_from([repr, str]))(value.value) + draw(st.sampled_from(["s", "S"]))
+    return draw(st.sampled_from([repr, str]))(float(value) if draw(st.booleans()) else value)
 
 
 @st.composite
@@ -106,8 +121,8 @@ def model_texts(draw):
     cls = MODELS[draw(st.sampled_from(sorted(MODELS)))]
     n_req = sum(p.required for p in cls.params)
     n = draw(st.integers(n_req, len(cls.params)))
-    values = [draw(_VALUES[p.kind]) for p in cls.params[:n]]
-    texts = [draw(st.sampled_from([repr, str]))(float(v) if draw(st.booleans()) else v) for v in values]
+    values = [_draw_value(draw, p.kind) for p in cls.params[:n]]
+    texts = [_text(draw, v) for v in values]
     name = draw(st.sampled_from([cls.name, cls.name.upper()]))
     return f"{name}:{','.join(texts)}", cls, values
 
@@ -120,7 +135,7 @@ def test_generated_specs_round_trip(parts):
     assert [type(m) for m in spec.models] == [cls for _, cls, _ in parts]
     for model, (_, cls, values) in zip(spec.models, parts):
         full = values + [p.default for p in cls.params[len(values):]]
-        assert list(model.values()) == [None if v is None else float(v) for v in full]
+        assert list(model.values()) == [v if v is None or isinstance(v, Seconds) else float(v) for v in full]
     canonical = str(spec)
     assert parse_corruption(canonical) == spec
     assert str(parse_corruption(canonical)) == canonical
@@ -147,6 +162,10 @@ def test_generated_specs_round_trip(parts):
     ("gaps:0.1,12,0", ["gaps", "MAX"]),
     ("gaps:0.1,12,2.5", ["gaps", "MAX", "whole"]),
     ("block:1.5", ["block", "N", "whole"]),
+    ("block:2x", ["block", "N", "seconds, as in 2s", "'2x'"]),
+    ("block:-1s", ["block", "N", ">= 0 seconds", "-1s"]),
+    ("gaps:0.1,0s", ["gaps", "MEAN", "> 0 seconds"]),
+    ("angular:2s", ["angular", "K", "'2s'"]),
     ("joints:-1", ["joints", "N"]),
     ("angular:0.5++drop:0.1", ["empty"]),
     ("+angular:0.5", ["empty"]),
@@ -213,14 +232,14 @@ def test_same_seed_same_output_other_seed_other_output(walk, text):
     assert a.motion.skeleton is walk.skeleton and a.motion.fps == walk.fps and a.motion.name == walk.name
     assert a.motion.channels.shape == walk.channels.shape
     # missing values are NaN and only they are
-    assert np.array_equal(np.isnan(a.motion.channels), ~channel_mask(a.observed))
+    assert np.array_equal(np.isnan(a.motion.channels), ~a.channel_observed)
 
 
 def test_streams_are_independent(walk):
     base = parse_corruption("angular:0.5").apply(walk, seed=1)
     for extra in ("drop:0.2", "gaps:0.02", "block:50", "joints:4", "outliers:0.0"):
         more = parse_corruption(f"angular:0.5+{extra}").apply(walk, seed=1)
-        obs = channel_mask(more.observed)
+        obs = more.channel_observed
         assert np.array_equal(more.motion.channels[obs], base.motion.channels[obs]), extra
     # a gap model's mask does not depend on models after it
     g = parse_corruption("gaps:0.02").apply(walk, seed=4)
@@ -233,7 +252,7 @@ def test_stream_is_seed_position_and_name(walk):
     work = Work(walk)
     from workbench.corruption import Angular
     Angular(0.5).corrupt(work, random_stream(5, 1, "angular"))
-    ok = channel_mask(obs.observed)
+    ok = obs.channel_observed
     assert np.array_equal(obs.motion.channels[ok], work.channels[ok])
     # the same model twice draws different noise
     twice = parse_corruption("angular:0.5+angular:0.5").apply(walk, seed=5).motion.channels

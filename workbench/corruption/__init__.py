@@ -11,7 +11,7 @@ Models (``MODELS``; ``models_help()`` prints them): angular, uniform, bias, sine
 spatial, spatial-ends, outliers (noise) and gaps, block, joints, drop (missing data).
 """
 
-from .base import Model, Param, format_number, random_stream
+from .base import Model, Param, Seconds, format_number, random_stream
 from .errors import CorruptionApplyError, CorruptionSpecError
 from .gaps import Block, Drop, Gaps, Joints
 from .noise import Angular, Bias, Outliers, Sine, Uniform
@@ -20,7 +20,7 @@ from .spec import MODELS, Corruption, make_case, models_help, parse_corruption
 
 __all__ = [
     "parse_corruption", "make_case", "Corruption", "MODELS", "models_help",
-    "CorruptionApplyError", "CorruptionSpecError", "Model", "Param", "random_stream", "format_number",
+    "CorruptionApplyError", "CorruptionSpecError", "Model", "Param", "Seconds", "random_stream", "format_number",
     "Angular", "Uniform", "Bias", "Sine", "Outliers", "Spatial", "SpatialEnds", "Gaps", "Block", "Joints", "Drop",
     "end_joints", "END_JOINT_PATTERN",
 ]

@@ -3,7 +3,10 @@ the working state a chain of models edits.
 
 Units: angles in degrees, root positions in the skeleton's file unit
 (``skeleton.unit_cm`` cm each), time in frames at ``motion.fps``; spatial noise levels
-are given in centimetres.
+are given in centimetres. A parameter counted in frames may be given in seconds instead
+(``block:2s``, ``gaps:0.0003,2s,4s``): a :class:`Seconds` value, turned into frames at
+the frame rate of the take it corrupts (:meth:`Work.frames`), so that one spec means the
+same at 30 and at 120 fps.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import numpy as np
 
 from ..core.channels import unwrap_deg
 from ..core.motion import Motion, angle_columns
-from .errors import CorruptionSpecError
+from .errors import CorruptionApplyError, CorruptionSpecError
 
 #: A channel whose clean std (degrees) is at most this counts as constant.
 ZERO_STD_DEG = 1e-9
@@ -33,6 +36,7 @@ _KINDS: dict[str, tuple[str, bool, float, float]] = {
     "mean-frames": ("a number of frames >= 1", False, 1.0, math.inf),
     "count": ("a whole number >= 0", True, 0.0, math.inf),
     "frames": ("a whole number of frames >= 1", True, 1.0, math.inf),
+    "frame-count": ("a whole number of frames >= 0", True, 0.0, math.inf),
     "frame": ("a frame index (whole number >= 0)", True, 0.0, math.inf),
 }
 
@@ -56,6 +60,10 @@ class Param:
 REQUIRED = _REQUIRED
 
 
+#: the kinds of parameter counted in frames, which also take seconds
+FRAME_KINDS = frozenset({"mean-frames", "frames", "frame-count", "frame"})
+
+
 def format_number(x: float | int) -> str:
     """Shortest text that reads back to the same number: ``0.5``, ``12``, ``1e-05``."""
     x = float(x)
@@ -64,6 +72,15 @@ def format_number(x: float | int) -> str:
     return repr(x)
 
 
+@dataclass(frozen=True)
+class Seconds:
+    """A parameter counted in frames, given in seconds (``2s`` in a spec): ``value`` s."""
+
+    value: float
+
+    def __str__(self) -> str:
+        return format_number(self.value) + "s"
+
 def random_stream(seed: int, position: int, name: str) -> np.random.Generator:
     """The random stream of the model at ``position`` (0-based) in a chain applied with
     ``seed``: independent of every other model's stream."""
@@ -71,8 +88,8 @@ def random_stream(seed: int, position: int, name: str) -> np.random.Generator:
 
 
 class Work:
-    """The state a chain of models edits in place: the channel matrix (F, 3 + 3J) of the
-    corrupted motion and the observed mask (F, J). Values under the mask are kept (not
+    """The state a chain of models edits in place: the channel matrix (F, 3 + 3J + 3T) of
+    the corrupted motion and the observed mask (F, J). Values under the mask are kept (not
     NaN) until the end so later models can still use them; statistics come from the
     clean clip."""
 
@@ -85,14 +102,37 @@ class Work:
     def n_frames(self) -> int:
         return self.clean.n_frames
 
+    def frames(self, model: "Model", name: str) -> Any:
+        """The value of ``model``'s parameter ``name`` in frames: as given, or its
+        :class:`Seconds` times the take's fps, rounded to whole frames for a whole-number
+        kind. Raises CorruptionApplyError where that leaves less than the kind's least
+        value (a span shorter than one frame)."""
+        value = getattr(model, name)
+        if not isinstance(value, Seconds):
+            return value
+        p = next(p for p, f in zip(model.params, fields(model)) if f.name == name)  # type: ignore[arg-type]
+        _, integer, lo, _ = _KINDS[p.kind]
+        frames = value.value * self.clean.fps
+        frames = int(math.floor(frames + 0.5)) if integer else frames
+        if frames < lo:
+            raise CorruptionApplyError(f"{model}: {p.name} = {value} is {format_number(frames)} frames at "
+                                       f"{self.clean.fps:g} fps; it must be at least {format_number(lo)}")
+        return frames
+
     @property
     def skeleton(self):
         return self.clean.skeleton
 
     @cached_property
     def angle_cols(self) -> np.ndarray:
-        """Columns of the joint-angle channels (every joint but the root)."""
+        """Columns of the joint-angle channels (every joint but those of the root chain)."""
         return angle_columns(self.skeleton)
+
+    @cached_property
+    def body_joints(self) -> np.ndarray:
+        """Indices of the joints outside the root chain (``skeleton.root_chain``, whose
+        motion is the trajectory): the joints a missing-data model hides one by one."""
+        return np.setdiff1d(np.arange(self.skeleton.n_joints), self.skeleton.root_chain)
 
     @cached_property
     def angle_std(self) -> np.ndarray:
@@ -139,6 +179,14 @@ class Model:
         if value is None and not p.required and p.default is None:
             return None
         what, integer, lo, hi = _KINDS[p.kind]
+        if isinstance(value, Seconds):
+            if p.kind not in FRAME_KINDS:
+                raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, not a time in seconds ({value})")
+            least = 0.0 if lo == 0 else math.nextafter(0.0, 1.0)  # a span must last; a frame index may be 0
+            if not (math.isfinite(value.value) and least <= value.value):
+                raise CorruptionSpecError(f"{cls.name}: {p.name} must be {'>= 0' if lo == 0 else '> 0'} "
+                                          f"seconds, got {value}")
+            return Seconds(value.value + 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {value!r}")
         x = float(value)
@@ -171,12 +219,14 @@ class Model:
         values: list[Any] = []
         for p, text in zip(cls.params, args):
             text = text.strip()
+            seconds = p.kind in FRAME_KINDS and text.lower().endswith("s")
             try:
-                values.append(float(text))
+                number = float(text[:-1] if seconds else text)
             except ValueError:
+                what = _KINDS[p.kind][0] + (" (or seconds, as in 2s)" if p.kind in FRAME_KINDS else "")
                 raise CorruptionSpecError(
-                    f"{cls.name}: {p.name} must be {_KINDS[p.kind][0]}, got {text!r}; usage: {cls.signature()}"
-                ) from None
+                    f"{cls.name}: {p.name} must be {what}, got {text!r}; usage: {cls.signature()}") from None
+            values.append(Seconds(number) if seconds else number)
         return cls(*values)  # type: ignore[call-arg]
 
     # -- text ----------------------------------------------------------------------------
@@ -187,7 +237,7 @@ class Model:
         vals = list(self.values())
         while vals and not self.params[len(vals) - 1].required and vals[-1] == self.params[len(vals) - 1].default:
             vals.pop()
-        return f"{self.name}:{','.join(format_number(v) for v in vals)}"
+        return f"{self.name}:{','.join(str(v) if isinstance(v, Seconds) else format_number(v) for v in vals)}"
 
     # -- application ---------------------------------------------------------------------
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:

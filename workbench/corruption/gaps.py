@@ -1,9 +1,13 @@
 """Missing-data models: the observed mask (F, J) goes False and the values become NaN
 (Mall et al. 2017 §4; Kaufmann et al. 2020 §3.3 and §4).
 
-Units: lengths and positions in frames (0-based frame indices of the clip); joints by
+Units: lengths and positions in frames (0-based frame indices of the clip), or in
+seconds where a spec says so (``block:2s``: :meth:`.base.Work.frames`); joints by
 index into ``skeleton.names``. A joint missing at a frame means its three angles are
-missing there; the root position is missing only where the root joint is (``block``).
+missing there (and its translation, for a translated joint); the root position is
+missing only where the root joint is (``block``). "Non-root joints" are those outside
+the root chain (``skeleton.root_chain``: the root, and the moving Hips a studio
+export's reference node carries), whose motion is the trajectory.
 """
 
 from __future__ import annotations
@@ -33,17 +37,18 @@ class Gaps(Model):
     mean: float = 12.0
     max: int = 600
 
-    def events(self, n_frames: int, n_joints: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Draw the gaps: (start frames, joints (>= 1), lengths (capped, not cut at the
-        clip end)), in frame-major order."""
-        starts = rng.random((n_frames, n_joints - 1)) < self.p
+    def events(self, work: Work, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Draw the gaps among ``work.body_joints``: (start frames, joints, lengths
+        (capped, not cut at the clip end)), in frame-major order."""
+        joints = work.body_joints
+        starts = rng.random((work.n_frames, joints.size)) < self.p
         frames, cols = np.nonzero(starts)
-        lengths = rng.geometric(1.0 / self.mean, size=frames.size)
-        return frames, cols + 1, np.minimum(lengths, self.max)
+        lengths = rng.geometric(1.0 / work.frames(self, "mean"), size=frames.size)
+        return frames, joints[cols], np.minimum(lengths, work.frames(self, "max"))
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
         F, J = work.observed.shape
-        frames, joints, lengths = self.events(F, J, rng)
+        frames, joints, lengths = self.events(work, rng)
         # +1 where a gap starts, -1 after it ends; the running sum counts open gaps.
         delta = np.zeros((F + 1, J), int)
         np.add.at(delta, (frames, joints), 1)
@@ -61,27 +66,29 @@ class Block(Model):
     name = "block"
     description = ("N consecutive frames missing for all joints (root too), placed at random with an observed "
                    "frame on each side, or starting at frame START")
-    params = (Param("N", "count", "number of missing frames"),
+    params = (Param("N", "frame-count", "number of missing frames"),
               Param("START", "frame", "first missing frame (default: random)", None))
     n: int
     start: int | None = None
 
-    def first_frame(self, n_frames: int, rng: np.random.Generator) -> int:
-        if n_frames < self.n + 2:
+    def first_frame(self, work: Work, rng: np.random.Generator) -> int:
+        n_frames, n = work.n_frames, work.frames(self, "n")
+        if n_frames < n + 2:
             raise CorruptionApplyError(
-                f"{self} needs a clip of at least {self.n + 2} frames (the block plus one observed frame on "
+                f"{self} needs a clip of at least {n + 2} frames (the block plus one observed frame on "
                 f"each side); this one has {n_frames}")
         if self.start is None:
-            return int(rng.integers(1, n_frames - self.n))
-        if not 1 <= self.start <= n_frames - self.n - 1:
+            return int(rng.integers(1, n_frames - n))
+        start = work.frames(self, "start")
+        if not 1 <= start <= n_frames - n - 1:
             raise CorruptionApplyError(
                 f"{self}: START must leave an observed frame on each side of the block, i.e. lie in "
-                f"1..{n_frames - self.n - 1} for this {n_frames}-frame clip; got {self.start}")
-        return self.start
+                f"1..{n_frames - n - 1} for this {n_frames}-frame clip; got {start}")
+        return start
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
-        s = self.first_frame(work.n_frames, rng)
-        work.observed[s:s + self.n] = False
+        s = self.first_frame(work, rng)
+        work.observed[s:s + work.frames(self, "n")] = False
 
 
 @dataclass(frozen=True)
@@ -118,5 +125,5 @@ class Drop(Model):
     p: float
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
-        F, J = work.observed.shape
-        work.observed[:, 1:] &= ~(rng.random((F, J - 1)) < self.p)
+        joints = work.body_joints
+        work.observed[:, joints] &= ~(rng.random((work.n_frames, joints.size)) < self.p)

@@ -7,7 +7,8 @@ included, gets position noise; the IK re-solves every joint's angles and the roo
 position takes its noisy value (so unlike the angle-noise models, spatial noise moves
 the root). The IK's reference (for the twist about single-child bones and the rotations
 of leaf joints, and the Euler branch) is the motion as it stands when this model runs:
-the clean angles when it is first in the chain.
+the clean angles when it is first in the chain. A translated joint (a studio export's
+moving Hips) takes its noisy position, as the root does.
 """
 
 from __future__ import annotations
@@ -44,8 +45,8 @@ def _spatial(work: Work, rng: np.random.Generator, sigma_cm: np.ndarray) -> None
     if not np.any(sigma_cm > 0):
         return  # no noise: keep the angles exactly
     current = work.motion()
-    root, angles = inverse_kinematics(work.skeleton, positions, reference_angles_deg=current.angles_deg)
-    work.channels = np.concatenate([root, angles.reshape(work.n_frames, -1)], axis=1)
+    root, angles, translations = inverse_kinematics(work.skeleton, positions, reference_angles_deg=current.angles_deg)
+    work.channels = current.replace(root_positions=root, angles_deg=angles, translations=translations).channels
 
 
 def noisy_positions(work: Work, rng: np.random.Generator, sigma_cm: np.ndarray) -> np.ndarray:

@@ -2,7 +2,7 @@
 apply it to a clean Motion reproducibly.
 
 Units: as in the models (angles in degrees, positions in file units, spatial levels in
-cm, lengths in frames). Text grammar: models joined by ``+``, applied left to right;
+cm, lengths in frames, or in seconds written ``2s``). Text grammar: models joined by ``+``, applied left to right;
 each ``name:p1,p2,...`` with positional numeric parameters, optional trailing ones
 defaulted; ``""`` or ``"none"`` is no corruption. Model names are case-insensitive.
 """
@@ -35,6 +35,7 @@ def models_help() -> str:
     width = max(len(cls.signature()) for cls in MODELS.values())
     lines = [f"{cls.signature():<{width}}  {cls.description}" for cls in MODELS.values()]
     lines.append(f"{'A+B':<{width}}  apply A, then B (e.g. angular:0.5+gaps:0.01); '' or 'none': no corruption")
+    lines.append(f"{'':<{width}}  lengths and frame numbers also take seconds: block:2s, gaps:0.0003,2s,4s")
     return "\n".join(lines)
 
 
