@@ -78,7 +78,7 @@ def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path,
     js = tmp_path / "b.json"
     assert main(["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--clips", "cmu-daz/kick/10_0*",
                  "--json", str(js)]) == 0
-    assert "no train/test split; benchmarking all" in capsys.readouterr().err
+    assert "no train/validation/test split; benchmarking all" in capsys.readouterr().err
     clips = json.loads(js.read_text())["clips"]
     assert clips and all(c.startswith("cmu-daz/kick/10_0") for c in clips)
 
@@ -110,6 +110,43 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     assert doc["reference_glitches"]["cmu/run/35_26"] == [
         {"joint": "RightFingerBase", "first": 64, "last": 67, "turn_deg": pytest.approx(169.74, abs=0.01)}]
     assert set(doc["reference_glitches"]) == {"cmu/run/35_26", "cmu/run/16_46"}
+
+
+def test_data_lists_a_dataset_with_its_styles_and_splits(capsys):
+    assert main(["data", "--dataset", "bandai", "--split", "validation"]) == 0
+    out = capsys.readouterr().out
+    assert "bandai/walk/dataset-2_walk_normal_006" in out and "cmu/" not in out
+    assert out.splitlines()[-1] == "bandai: 75 clips (75 validation), 13,338 frames at 30 fps"
+
+
+def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_refusals(tmp_path, capsys):
+    """Every dataset's test split, a table each; a take too short for the block (Bandai's
+    135-frame walk_happy_002) is left out with a note, not the run; a trained engine
+    that refuses a skeleton is named."""
+    js = tmp_path / "b.json"
+    assert main(["bench", "--engines", "kalman,kalman-learned", "--corrupt", "block:150", "--clips", "*/walk/*",
+                 "--json", str(js)]) == 0
+    out, err = capsys.readouterr()
+    doc = json.loads(js.read_text())
+    assert set(doc["summary_by_dataset"]) == {"bandai", "cmu"} and "\nbandai (" in "\n" + out and "\ncmu (" in out
+    assert doc["skipped"] == {"bandai/walk/dataset-1_walk_happy_002": "block:150 needs a clip of at least 152 frames "
+                              "(the block plus one observed frame on each side); this one has 135"}
+    assert "bandai/walk/dataset-1_walk_happy_002" not in doc["clips"] and "too short for block:150" in err
+    assert set(doc["refused"]["kalman-learned"]) == {c for c in doc["clips"] if c.startswith("bandai/")}
+    assert "kalman-learned did not clean" in err and "Clean it with a classical engine" in err
+    assert "mpjpe_cm" in doc["summary_by_dataset"]["bandai"]["kalman"]
+    assert "mpjpe_cm" not in doc["summary_by_dataset"]["bandai"]["kalman-learned"]
+    assert main(["bench", "--engines", "kalman", "--corrupt", "angular:0.5", "--dataset", "bandai",
+                 "--clips", "*/walk/*", "--json", str(js)]) == 0
+    out, _ = capsys.readouterr()
+    clips = json.loads(js.read_text())["clips"]
+    assert clips and all(c.startswith("bandai/") for c in clips) and out.startswith("| engine |")
+
+
+def test_train_refuses_translated_joints_and_defaults_to_the_committed_dataset(capsys):
+    assert main(["train", "kalman-learned", "--dataset", "bandai", "--out", "unused"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot be trained on skeletons with translated joints yet" in err and "Hips" in err
 
 
 def test_per_clip_marks_a_metric_no_seed_defines():

@@ -94,3 +94,30 @@ def test_no_data_message_says_what_to_do(tmp_path, monkeypatch):
 def test_find_clip_errors():
     with pytest.raises(KeyError, match="workbench data"):
         find_clip("nope_99")
+
+
+def test_the_studio_set_is_catalogued_with_its_styles_and_frames(clips):
+    bandai = select(clips, dataset="bandai")
+    assert len(bandai) == 594 and sum(c.frames for c in bandai) == 98_589
+    assert {c.fps for c in bandai} == {30.0} and all(c.style and not c.subject for c in bandai)
+    assert len({c.category for c in bandai}) == 24  # 16 contents and 10, walk and run in both
+    for c in bandai[::97]:  # frame 0 is motion, not a T-pose: nothing is dropped
+        assert c.load().n_frames == c.frames
+
+
+def test_the_studio_split_holds_out_whole_styles_and_validates_on_training_styles(clips):
+    bandai = select(clips, dataset="bandai")
+    split = json.loads((SPLITS_DIR / "bandai.json").read_text())
+    by = {name: select(bandai, name) for name in ("train", "validation", "test")}
+    assert sum(map(len, by.values())) == len(bandai) and all(by.values())
+    for name in ("validation", "test"):
+        assert sorted(split[name]) == sorted(c.id.removeprefix("bandai/") for c in by[name])
+    for subset, held in split["test_styles"].items():
+        mine = {name: {c.style for c in group if f"/{subset}_" in c.id} for name, group in by.items()}
+        assert mine["test"] == set(held) and not (mine["test"] & (mine["train"] | mine["validation"]))
+        assert mine["validation"] <= mine["train"]
+        total = len({c.style for c in bandai if f"/{subset}_" in c.id})
+        assert 1 <= len(held) <= round(total / 5) + 1  # about one style in five
+    # every content and style pair of the training styles is still trained on
+    pairs = lambda group: {(c.category, c.style) for c in group}  # noqa: E731
+    assert pairs(by["validation"]) <= pairs(by["train"])

@@ -53,17 +53,28 @@ def split_engine_specs(values: list[str]) -> list[str]:
 
 # -- data -------------------------------------------------------------------------------
 def cmd_data(args) -> int:
-    from .data import catalogue, find_data_root, select
+    from .data import SPLITS, catalogue, find_data_root, select
 
     root = find_data_root(args.data)
-    clips = select(catalogue(root), args.split)
+    clips = select(catalogue(root), args.split, dataset=args.dataset)
     print(f"data root: {root}")
-    print(f"{'clip':28s} {'category':9s} {'subject':7s} {'split':6s} {'frames':>6s}")
+    wide = {"id": 4, "category": 8, "who": 13}
     for c in clips:
-        print(f"{c.id:28s} {c.category:9s} {c.subject:7s} {c.split or '-':6s} {c.frames or '?':>6}")
-    counts = {s: sum(c.split == s for c in clips) for s in ("train", "test", "")}
-    print(f"{len(clips)} clips: {counts['train']} train, {counts['test']} test, {counts['']} in no split")
-    print("Frame 0 of the cgspeed conversions is a T-pose reference frame; loading drops it.")
+        wide = {"id": max(wide["id"], len(c.id)), "category": max(wide["category"], len(c.category)),
+                "who": max(wide["who"], len(c.subject or c.style))}
+    print(f"{'clip':{wide['id']}s}  {'category':{wide['category']}s}  {'subject/style':{wide['who']}s}  "
+          f"{'split':10s} {'frames':>6s} {'fps':>4s}")
+    for c in clips:
+        print(f"{c.id:{wide['id']}s}  {c.category:{wide['category']}s}  {c.subject or c.style:{wide['who']}s}  "
+              f"{c.split or '-':10s} {c.frames or '?':>6} {c.fps or '?':>4g}")
+    for name in dict.fromkeys(c.dataset for c in clips):
+        mine = [c for c in clips if c.dataset == name]
+        counts = ", ".join(f"{n} {s}" for s in SPLITS if (n := sum(c.split == s for c in mine)))
+        rates = "/".join(f"{r:g}" for r in sorted({c.fps for c in mine if c.fps}))
+        print(f"{name or 'clips'}: {len(mine)} clips ({counts or 'in no split'}), "
+              f"{sum(c.frames for c in mine):,} frames" + (f" at {rates} fps" if rates else ""))
+    if any(c.dataset == "cmu" for c in clips):
+        print("Frame 0 of the cgspeed conversions (cmu) is a T-pose reference frame; loading drops it.")
     return 0
 
 
@@ -185,20 +196,48 @@ def cmd_clean(args) -> int:
 
 # -- bench ------------------------------------------------------------------------------
 def _bench_clips(args):
+    """The clips to benchmark: of every dataset (or ``--dataset``), those in ``--split``,
+    or all of them where none of the matching clips is in a split."""
     from .data import catalogue, find_data_root, select
 
     root = find_data_root(args.data)
-    # the team's data root holds two datasets: without --data or --clips, the CMU one
-    matched = select(catalogue(root), None, dataset=None if args.data or args.clips else "cmu", pattern=args.clips)
+    matched = select(catalogue(root), None, dataset=args.dataset, pattern=args.clips)
     if any(c.split for c in matched):
         chosen = select(matched, args.split)
     else:
         chosen = matched
         if matched and args.split != "all":
-            print(f"note: these clips have no train/test split; benchmarking all {len(matched)}", file=sys.stderr)
+            print(f"note: these clips have no train/validation/test split; benchmarking all {len(matched)}",
+                  file=sys.stderr)
     if not chosen:
-        raise UserError(f"no clips match split={args.split!r} clips={args.clips!r} under {root}")
+        raise UserError(f"no clips match split={args.split!r} dataset={args.dataset!r} clips={args.clips!r} "
+                        f"under {root}")
     return [(c.id, c.load()) for c in chosen]
+
+
+def _bench_notes(result) -> None:
+    """On stderr: the clips left out (too short for the corruption, refused by an engine,
+    one line per engine and reason) and the reference's capture glitches."""
+    from .data.quality import MAX_TURN_DPS
+
+    if result.skipped:
+        print(f"note: {len(result.skipped)} clips are too short for {result.corruption} and were left out:",
+              file=sys.stderr)
+        for clip, reason in result.skipped.items():
+            print(f"  {clip}: {reason}", file=sys.stderr)
+    for spec, refused in result.refused.items():
+        by_reason: dict[str, list[str]] = {}
+        for clip, reason in refused.items():
+            by_reason.setdefault(reason, []).append(clip)
+        for reason, clips in by_reason.items():
+            more = f" and {len(clips) - 1} more" if len(clips) > 1 else ""
+            print(f"note: {spec} did not clean {len(clips)} clips ({clips[0]}{more}): {reason}", file=sys.stderr)
+    if result.glitches:
+        print(f"note: {len(result.glitches)} of the clean clips have capture glitches, where a joint turns faster "
+              f"than a body can (over {MAX_TURN_DPS:,.0f} degrees/s); an engine that removes one is scored as wrong "
+              "there:", file=sys.stderr)
+        for clip, found in result.glitches.items():
+            print(f"  {clip}: " + "; ".join(map(str, found)), file=sys.stderr)
 
 
 def cmd_bench(args) -> int:
@@ -214,18 +253,18 @@ def cmd_bench(args) -> int:
         def progress(msg):
             print("  " + msg, file=sys.stderr)
     result = run_benchmark(specs, args.corrupt, clips, seeds, progress=progress)
-    print(result.markdown())
+    datasets = result.datasets()
+    if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
+        for name, ids in datasets.items():
+            print(f"{name or 'clips'} ({len(ids)} clips):")
+            print(result.markdown(ids))
+            print()
+    else:
+        print(result.markdown())
     if args.per_clip:
         print()
         print(result.per_clip_markdown(args.per_clip))
-    if result.glitches:
-        from .data.quality import MAX_TURN_DPS
-
-        print(f"note: {len(result.glitches)} of the clean clips have capture glitches, where a joint turns faster "
-              f"than a body can (over {MAX_TURN_DPS:,.0f} degrees/s); an engine that removes one is scored as wrong "
-              "there:", file=sys.stderr)
-        for clip, found in result.glitches.items():
-            print(f"  {clip}: " + "; ".join(map(str, found)), file=sys.stderr)
+    _bench_notes(result)
     if args.json:
         from .io.atomic import atomic_write_text
 
@@ -235,6 +274,11 @@ def cmd_bench(args) -> int:
 
 
 # -- train ------------------------------------------------------------------------------
+#: the dataset the committed weights were trained on: ``train``'s default where a data
+#: root holds the training splits of several
+COMMITTED_WEIGHTS_DATASET = "cmu"
+
+
 def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, find_data_root, select
@@ -252,10 +296,21 @@ def cmd_train(args) -> int:
                         "(--out says where the new weights go)")
     root = find_data_root(args.data)
     clips = catalogue(root)
+    dataset = args.dataset
+    if dataset is None and len({c.dataset for c in select(clips, "train")}) > 1:
+        dataset = COMMITTED_WEIGHTS_DATASET
+        print(f"note: training on the {dataset} training split, as the committed weights were "
+              "(--dataset NAME trains on another)", file=sys.stderr)
+    clips = select(clips, dataset=dataset)
     train = select(clips, "train") or select(clips, None)
     if not train:
-        raise UserError(f"no training clips under {root}")
+        raise UserError(f"no training clips under {root}" + (f" in dataset {dataset!r}" if dataset else ""))
     motions = [c.load() for c in train]
+    moving = {m.skeleton.names[j] for m in motions for j in m.skeleton.translated}
+    if moving:
+        raise UserError(f"engine {engine.info.name!r} cannot be trained on skeletons with translated joints yet "
+                        f"(these takes move {', '.join(sorted(moving))} by position channels); clean them with a "
+                        "classical engine: kalman, gaussian, butterworth, lerp, spline")
     layouts = {m.skeleton.signature() for m in motions}
     if len(layouts) > 1:
         keep = motions[0].skeleton.signature()
@@ -315,8 +370,13 @@ def cmd_report(args) -> int:
 
     if Path(args.output).suffix.lower() not in FORMATS:
         raise UserError(f"the report must be a .png or .pdf file, not {args.output!r}")
+    def refused(spec: str, message: str) -> None:
+        print(f"note: {spec} left out: {message}", file=sys.stderr)
+
     specs = split_engine_specs(args.engine) if args.engine else default_engines()
-    print(f"wrote {write_report(args.output, args.clip, args.corrupt, args.seed, specs, args.frame)}")
+    path = write_report(args.output, args.clip, args.corrupt, args.seed, specs, args.frame,
+                        on_refused=None if args.engine else refused)  # the defaults: those that take it
+    print(f"wrote {path}")
     return 0
 
 
@@ -337,18 +397,20 @@ def cmd_screenshots(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .data import SPLITS
     from .metrics import METRICS
 
     p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
-    def data_opt(sp):
+    def data_opt(sp, dataset_help: str = "only the clips of this dataset (e.g. cmu, bandai)"):
         sp.add_argument("--data", metavar="DIR", help="data root (default: $WORKBENCH_DATA, datasets/, ../shared/data)")
+        sp.add_argument("--dataset", metavar="NAME", help=dataset_help)
 
-    sp = sub.add_parser("data", help="list the clips and their train/test split")
+    sp = sub.add_parser("data", help="list the clips and their train/validation/test split")
     data_opt(sp)
-    sp.add_argument("--split", choices=["train", "test", "all"], default="all")
+    sp.add_argument("--split", choices=[*SPLITS, "all"], default="all")
     sp.set_defaults(func=cmd_data)
 
     sp = sub.add_parser("engines", help="list the registered engines and their parameters")
@@ -375,7 +437,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
     sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
     sp.add_argument("--corrupt", required=True, metavar="SPEC")
-    sp.add_argument("--split", choices=["train", "test", "all"], default="test")
+    sp.add_argument("--split", choices=[*SPLITS, "all"], default="test",
+                    help="the clips of this split of every dataset that has one (default: test)")
     data_opt(sp)
     sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
     sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
@@ -389,7 +452,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("train", help="train an engine on the training split")
     sp.add_argument("engine", metavar="SPEC")
     sp.add_argument("--epochs", type=int)
-    data_opt(sp)
+    data_opt(sp, f"train on this dataset's training split (default: {COMMITTED_WEIGHTS_DATASET} where the data "
+                 "root has the splits of several)")
     sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias)")
     sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
     sp.set_defaults(func=cmd_train)

@@ -6,8 +6,10 @@ inside ``engine.clean`` (single process, this machine). ``peak_mb`` is the most 
 memory the engine's clean of the longest case added to the process, in MB, measured in a
 clean of its own after the timed ones: its working memory, beyond its loaded weights
 (Linux; absent elsewhere). Other summary values are means over all (clip, seed) rows of
-an engine. ``glitches`` names the capture glitches of the clean clips scored against
-(:mod:`workbench.data.quality`), which stay in the scores.
+an engine; :meth:`BenchResult.summarise` gives them over some of the clips (one dataset).
+``glitches`` names the capture glitches of the clean clips scored against
+(:mod:`workbench.data.quality`), which stay in the scores. A clip too short for the
+corruption is skipped, and one an engine refuses left out of its rows, each with a note.
 """
 
 from __future__ import annotations
@@ -23,8 +25,8 @@ import numpy as np
 
 from . import metrics, registry
 from .core.motion import Case, Motion, Observation
-from .engine import Engine
-from .corruption import make_case
+from .engine import Engine, EngineError
+from .corruption import CorruptionApplyError, make_case, parse_corruption
 from .data.quality import Glitch, reference_glitches
 from .metrics import METRICS
 
@@ -75,7 +77,12 @@ def format_value(metric: str, value: float) -> str:
 
 @dataclass
 class BenchResult:
-    """Per-row results and per-engine summaries, keyed by each spec exactly as given."""
+    """Per-row results and per-engine summaries, keyed by each spec exactly as given.
+
+    ``skipped``: the clips too short (or otherwise unfit) for the corruption, with the
+    reason, left out for every engine. ``refused``: per engine, the clips it refused to
+    clean (an engine trained for another skeleton, a filter longer than the take), with
+    its message; its summary is over the clips it cleaned."""
 
     corruption: str
     seeds: list[int]
@@ -84,18 +91,45 @@ class BenchResult:
     summary: dict[str, dict[str, float]] = field(default_factory=dict)
     #: the capture glitches of each clip's clean motion, for the clips that have any
     glitches: dict[str, list[Glitch]] = field(default_factory=dict)
+    skipped: dict[str, str] = field(default_factory=dict)
+    refused: dict[str, dict[str, str]] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"corruption": self.corruption, "seeds": self.seeds, "clips": self.clips,
                 "rows": self.rows, "summary": self.summary,
+                "summary_by_dataset": {name: self.summarise(clips) for name, clips in self.datasets().items()},
+                "skipped": self.skipped, "refused": self.refused,
                 "reference_glitches": {clip: [dataclasses.asdict(g) for g in found]
                                        for clip, found in self.glitches.items()}}
 
-    def markdown(self) -> str:
-        cols = [m for m in (*METRICS, *COST_COLUMNS) if any(m in s for s in self.summary.values())]
+    def datasets(self) -> dict[str, list[str]]:
+        """The benchmarked clips by dataset (the first part of a clip id, ``cmu`` of
+        ``cmu/walk/35_31``), in benchmark order."""
+        out: dict[str, list[str]] = {}
+        for clip in self.clips:
+            out.setdefault(clip.split("/")[0] if "/" in clip else "", []).append(clip)
+        return out
+
+    def summarise(self, clips: Sequence[str]) -> dict[str, dict[str, float]]:
+        """Per engine, the summary over the rows of ``clips`` only: each metric's mean and
+        the throughput (``peak_mb`` is the engine's over the whole run)."""
+        chosen = set(clips)
+        out = {}
+        for spec, whole in self.summary.items():
+            rows = [r for r in self.rows if r["engine"] == spec and r["clip"] in chosen]
+            out[spec] = summarise_rows(rows)
+            if "peak_mb" in whole and rows:
+                out[spec]["peak_mb"] = whole["peak_mb"]
+        return out
+
+    def markdown(self, clips: Sequence[str] | None = None) -> str:
+        """The summary table, over all clips or over ``clips``; "–" for an engine that
+        cleaned none of them."""
+        summary = self.summary if clips is None else self.summarise(clips)
+        cols = [m for m in (*METRICS, *COST_COLUMNS) if any(m in s for s in summary.values())]
         head = "| engine | " + " | ".join(cols) + " |"
         lines = [head, "|" + "---|" * (len(cols) + 1)]
-        for spec, s in self.summary.items():
+        for spec, s in summary.items():
             cells = [format_value(c, s.get(c, math.nan)) for c in cols]
             lines.append(f"| {spec} | " + " | ".join(cells) + " |")
         return "\n".join(lines)
@@ -125,6 +159,20 @@ class BenchResult:
         return "\n".join(lines)
 
 
+def summarise_rows(rows: Sequence[dict]) -> dict[str, float]:
+    """Each metric's mean over the ``rows`` that define it, and ``frames_per_s``: the
+    frames of all rows over their cleaning seconds (absent without rows)."""
+    summary = {}
+    for m in METRICS:
+        vals = [r[m] for r in rows if m in r and not math.isnan(r[m])]
+        if vals:
+            summary[m] = float(np.mean(vals))
+    if rows:
+        seconds = sum(r["seconds"] for r in rows)
+        summary["frames_per_s"] = sum(r["frames"] for r in rows) / seconds if seconds > 0 else float("inf")
+    return summary
+
+
 def run_benchmark(
     engine_specs: Sequence[str | Engine],
     corruption: str,
@@ -133,43 +181,51 @@ def run_benchmark(
     progress: Callable[[str], None] | None = None,
 ) -> BenchResult:
     """Corrupt each clip with each seed, clean it with each engine, score it. Engines are
-    spec strings or ready engine objects (keyed by their ``spec``)."""
+    spec strings or ready engine objects (keyed by their ``spec``). A clip the corruption
+    cannot be applied to (too short for a block) is skipped, and a clip an engine refuses
+    (EngineError) is left out of that engine's rows; both are recorded with the reason."""
     engines = {(e if isinstance(e, str) else e.spec): (registry.create(e) if isinstance(e, str) else e)
                for e in engine_specs}
-    cases: list[tuple[str, Case]] = [
-        (clip_id, make_case(motion, corruption, seed)) for clip_id, motion in clips for seed in seeds
-    ]
-    result = BenchResult(corruption=str(cases[0][1].corruption) if cases else corruption,
-                         seeds=list(seeds), clips=[c for c, _ in clips],
+    result = BenchResult(corruption=str(parse_corruption(corruption)), seeds=list(seeds), clips=[],
                          glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))})
+    cases: list[tuple[str, Case]] = []
+    for clip_id, motion in clips:
+        try:
+            cases += [(clip_id, make_case(motion, corruption, seed)) for seed in seeds]
+        except CorruptionApplyError as err:
+            result.skipped[clip_id] = str(err)
+            result.glitches.pop(clip_id, None)
+            continue
+        result.clips.append(clip_id)
     for spec, engine in engines.items():
-        if cases:  # warm-up (lazy imports, caches) outside the timed calls
-            obs = cases[0][1].observation
-            n = min(obs.n_frames, 256)
-            engine.clean(Observation(obs.motion.slice(0, n), obs.observed[:n]))
-        frames = 0
-        seconds = 0.0
+        warm = False
+        refused: dict[str, str] = {}
         for clip_id, case in cases:
+            if clip_id in refused:
+                continue
             if progress:
                 progress(f"{spec} on {clip_id} seed {case.seed}")
-            t0 = time.perf_counter()
-            cleaned = engine.clean(case.observation)
-            dt = time.perf_counter() - t0
-            frames += case.truth.n_frames
-            seconds += dt
+            try:
+                if not warm:  # warm-up (lazy imports, caches) outside the timed calls
+                    n = min(case.observation.n_frames, 256)
+                    engine.clean(Observation(case.observation.motion.slice(0, n), case.observation.observed[:n]))
+                    warm = True
+                t0 = time.perf_counter()
+                cleaned = engine.clean(case.observation)
+                dt = time.perf_counter() - t0
+            except EngineError as err:
+                refused[clip_id] = str(err)
+                continue
             row = {"engine": spec, "clip": clip_id, "seed": case.seed, "frames": case.truth.n_frames,
                    "seconds": dt}
             row.update(metrics.score(case.truth, cleaned.motion, case.observation.observed))
             result.rows.append(row)
-        rows = [r for r in result.rows if r["engine"] == spec]
-        summary = {}
-        for m in METRICS:
-            vals = [r[m] for r in rows if m in r and not math.isnan(r[m])]
-            if vals:
-                summary[m] = float(np.mean(vals))
-        summary["frames_per_s"] = frames / seconds if seconds > 0 else float("inf")
-        if cases:  # memory in a clean of its own, so that its page faults stay out of the timings
-            longest = max(cases, key=lambda c: c[1].truth.n_frames)[1].observation
+        if refused:
+            result.refused[spec] = refused
+        summary = summarise_rows([r for r in result.rows if r["engine"] == spec])
+        accepted = [case for clip_id, case in cases if clip_id not in refused]
+        if accepted:  # memory in a clean of its own, so that its page faults stay out of the timings
+            longest = max(accepted, key=lambda c: c.truth.n_frames).observation
             before = reset_peak_resident()
             engine.clean(longest)
             peak = resident_mb("VmHWM") - before

@@ -27,17 +27,20 @@ from pathlib import Path
 
 import numpy as np
 
-from ..core.motion import Motion
+from ..core.motion import Motion, angle_joints
 from ..io import MOTION_SUFFIXES, read_motion
 from .roots import files_under, find_data_root
 
 SPLITS_DIR = Path(__file__).resolve().parent / "splits"
+#: the splits a clip can be in, in listing order ("" for a dataset without a split file)
+SPLITS = ("train", "validation", "test")
 
 
 @dataclass(frozen=True)
 class Clip:
-    """One take in the catalogue. ``frames`` counts the file's frames (reference
-    frame included) when known, else 0."""
+    """One take in the catalogue. ``split`` is one of :data:`SPLITS` or ""; ``style`` the
+    performance style of a set that records one (Bandai's happy, old, ...), else "";
+    ``frames`` counts the file's frames (reference frame included) when known, else 0."""
 
     id: str
     path: Path
@@ -47,6 +50,7 @@ class Clip:
     split: str
     frames: int = 0
     fps: float = 0.0
+    style: str = ""
 
     def load(self, keep_reference: bool = False) -> Motion:
         motion = read_motion(self.path)
@@ -57,9 +61,9 @@ def has_reference_frame(motion: Motion) -> bool:
     """True when frame 0 is a rest/T-pose frame added by a converter (see module doc)."""
     if motion.n_frames < 3:
         return False
-    a = motion.angles_deg
-    root_zero = np.all(a[0, 0] == 0.0)
-    return bool(root_zero and np.mean(np.abs(a[0, 1:])) < 0.5 * np.mean(np.abs(a[1, 1:])))
+    a, body = motion.angles_deg, angle_joints(motion.skeleton)
+    root_zero = np.all(a[0, motion.skeleton.body_root] == 0.0)
+    return bool(root_zero and np.mean(np.abs(a[0, body])) < 0.5 * np.mean(np.abs(a[1, body])))
 
 
 def without_reference_frame(motion: Motion) -> Motion:
@@ -80,7 +84,7 @@ def _split_of(dataset: str, clip_file: str) -> str:
     if not split:
         return ""
     stem = Path(clip_file).with_suffix("").as_posix()
-    return "test" if stem in split["test"] else "train"
+    return next((name for name in ("test", "validation") if stem in split.get(name, ())), "train")
 
 
 def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
@@ -100,6 +104,7 @@ def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
                         split=_split_of(dataset, rel),
                         frames=int(row.get("frames") or 0),
                         fps=float(row.get("fps") or 0.0),
+                        style=row.get("style", ""),
                     )
                 )
         return clips
@@ -138,8 +143,8 @@ def catalogue(root: str | Path | None = None) -> list[Clip]:
 
 def select(clips: list[Clip], split: str | None = None, dataset: str | None = None,
            pattern: str | None = None) -> list[Clip]:
-    """Filter clips: ``split`` "train"/"test"/"all", ``dataset`` name, ``pattern`` a glob
-    on the clip id (``cmu/walk/*``)."""
+    """Filter clips: ``split`` one of :data:`SPLITS` or "all", ``dataset`` name,
+    ``pattern`` a glob on the clip id (``cmu/walk/*``)."""
     out = clips
     if split and split != "all":
         out = [c for c in out if c.split == split]
