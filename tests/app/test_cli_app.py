@@ -59,7 +59,8 @@ def test_a_failing_report_leaves_the_old_file_untouched(tmp_path, capsys):
     assert cli.main(["report", DEFAULT_CLIP, "-o", str(tmp_path / "report.jpg")]) == 2
 
 
-def test_screenshots_of_every_main_state(tmp_path, tiny_walk):
+def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
+    from workbench.app.main import STUDIO_CLIP
     from workbench.io import write_bvh
 
     take = tmp_path / "walk.bvh"
@@ -71,8 +72,9 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk):
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
     names = sorted(p.name for p in (tmp_path / "shots").iterdir())
+    studio = ["studio.png"] if any(c.id == STUDIO_CLIP for c in clips) else []  # a Bandai take by its id
     assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "outliers.png", "recorded.png",
-                     "report.png"]
+                     "report.png", *studio]
     assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
     assert "Traceback" not in run.stderr
 

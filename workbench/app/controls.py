@@ -21,6 +21,10 @@ SPEC_ROLE = Qt.UserRole
 MAX_MESSAGES = 100
 
 
+#: the characters of a clip id the clip box is sized for
+CLIP_CHARS = 16
+
+
 class TakePanel(QGroupBox):
     """Clip picker (catalogue or file), corruption spec and seed."""
 
@@ -32,6 +36,11 @@ class TakePanel(QGroupBox):
         self.clip.setInsertPolicy(QComboBox.NoInsert)
         self.clip.setToolTip("a catalogue clip id, or a BVH/AMC path")
         self.clip.addItems(self._catalogue())
+        # sized for ids like cmu/walk/35_31, not for the longest (a studio set's run to 60
+        # characters and would widen the whole panel); the list drops down as wide as they need
+        self.clip.setSizeAdjustPolicy(QComboBox.AdjustToMinimumContentsLengthWithIcon)
+        self.clip.setMinimumContentsLength(CLIP_CHARS)
+        self.clip.view().setMinimumWidth(self.clip.view().sizeHintForColumn(0) + 24)
         self.clip.activated.connect(lambda _: self.apply())
         self.clip.lineEdit().returnPressed.connect(self.apply)
         browse = QPushButton("Open file…")
@@ -67,6 +76,7 @@ class TakePanel(QGroupBox):
     def show_take(self) -> None:
         take = self.session.take
         self.clip.setCurrentText(take.source)
+        self.clip.lineEdit().setCursorPosition(0)  # the dataset and category, where a long id is cut
         self.corruption.setText(take.corruption)
         self.seed.setValue(take.seed)
 

@@ -8,6 +8,7 @@ Units: as in the app (cm, seconds, frames). The file is written atomically.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -87,17 +88,27 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
 
 
 def write_report(path: str | Path, source: str, corruption: str, seed: int, specs: list[str],
-                 frame: int | None = None) -> Path:
+                 frame: int | None = None, on_refused: Callable[[str, str], None] | None = None) -> Path:
     """Load and corrupt ``source``, run the engines, write the report (PNG or PDF by
     suffix) atomically. ``frame`` defaults to the middle of the take. Raises what the
-    engines raise."""
+    engines raise; with ``on_refused``, an engine that refuses the take (EngineError: a
+    trained engine on another skeleton) is left out and ``on_refused(spec, message)``
+    told instead."""
+    from ..engine import EngineError
     from ..io.atomic import atomic_path
 
     path = Path(path)
     if path.suffix.lower() not in FORMATS:
         raise ValueError(f"the report must be a .png or .pdf file, not {path.name!r}")
     take = open_take(source, corruption, seed)
-    runs = [run_engine(spec, take) for spec in specs]
+    runs = []
+    for spec in specs:
+        try:
+            runs.append(run_engine(spec, take))
+        except EngineError as err:
+            if on_refused is None:
+                raise
+            on_refused(spec, str(err))
     frame = take.n_frames // 2 if frame is None else min(max(frame, 0), take.n_frames - 1)
     fig = report_figure(take, runs, frame)
     with atomic_path(path) as tmp:
