@@ -36,6 +36,14 @@ def architecture(params: typing.Any) -> dict[str, typing.Any]:
     """The parameters of ``params`` marked :data:`ARCHITECTURE`, by name."""
     return {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.metadata.get("architecture")}
 SPACES = frozenset({"angles", "positions"})
+#: the engines to point a user to for takes no trained engine models (translated joints)
+CLASSICAL = "kalman, gaussian, butterworth, lerp, spline"
+
+
+def _moving(skeleton: Skeleton) -> str:
+    """What moves by position channels, in words: ``Hips moves by position channels``."""
+    names = [skeleton.names[j] for j in skeleton.translated]
+    return f"{', '.join(names)} move{'s' if len(names) == 1 else ''} by position channels"
 
 
 class EngineError(ValueError):
@@ -167,15 +175,37 @@ class Engine:
         raise NotImplementedError
 
     # -- skeleton checks ------------------------------------------------------------
+    def training_motions(self, motions: Sequence[Motion], same_fps: bool = False) -> list[Motion]:
+        """``motions`` as a list, checked as every trained engine's ``fit`` needs them: at
+        least one, all of one skeleton layout (and, with ``same_fps``, one frame rate),
+        none with translated joints, which no trained engine models yet. Raises
+        EngineError saying which rule they break."""
+        motions = list(motions)
+        name = self.info.name
+        if not motions:
+            raise EngineError(f"engine {name!r}: no training motions")
+        first = motions[0]
+        for m in motions[1:]:
+            if m.skeleton.signature() != first.skeleton.signature():
+                raise EngineError(f"engine {name!r} trains on one skeleton layout; {first.name or 'motion 0'} "
+                                  f"and {m.name or 'another'} have different ones")
+            if same_fps and abs(m.fps - first.fps) > 1e-6:
+                raise EngineError(f"engine {name!r}: the training motions mix frame rates "
+                                  f"({first.fps:g} and {m.fps:g} fps)")
+        if first.skeleton.translated:
+            raise EngineError(f"engine {name!r} cannot be trained on skeletons with translated joints yet "
+                              f"({_moving(first.skeleton)}); clean such takes with a classical engine: "
+                              f"{CLASSICAL}")
+        return motions
+
     def check_skeleton(self, skeleton: Skeleton) -> None:
         """Raise EngineError if this engine was fitted for another skeleton layout."""
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
             mine = (f"engine {self.info.name!r} was trained for another skeleton ({self.skeleton_description_}); "
                     f"this take has {skeleton.n_joints} joints rooted at {skeleton.names[0]!r}")
             if skeleton.translated:  # no trained engine models them yet
-                moving = ", ".join(skeleton.names[j] for j in skeleton.translated)
-                raise EngineError(f"{mine}, and joints it cannot model yet: {moving} move by position channels. "
-                                  "Clean it with a classical engine: kalman, gaussian, butterworth, lerp, spline.")
+                raise EngineError(f"{mine}, and joints it cannot model yet: {_moving(skeleton)}. "
+                                  f"Clean it with a classical engine: {CLASSICAL}.")
             raise EngineError(
                 f"{mine}. Train it on takes of this skeleton "
                 f"(`workbench train {self.info.name} --data DIR --out FOLDER`) and clean with "

@@ -302,11 +302,7 @@ class ConvAutoencoderEngine(Engine):
         """Train on clean motions of one skeleton layout (the training split)."""
         from engines.torch_support import reproducible_training
 
-        if not motions:
-            raise EngineError(f"engine {self.info.name!r}: no training motions")
-        skeleton = motions[0].skeleton
-        if any(m.skeleton.signature() != skeleton.signature() for m in motions):
-            raise EngineError(f"engine {self.info.name!r} trains on one skeleton layout; these motions mix several")
+        motions = self.training_motions(motions)
         with reproducible_training(self.params.seed):
             self._train(motions)
         return self

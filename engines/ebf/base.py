@@ -17,7 +17,7 @@ import numpy as np
 
 from workbench.core.channels import retime, unwrap_deg
 from workbench.core.motion import Motion, Observation
-from workbench.engine import Engine, EngineError, architecture
+from workbench.engine import Engine, architecture
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
@@ -157,15 +157,10 @@ class WindowEngine(Engine):
         progress bar and per-epoch losses on stderr."""
         from engines.torch_support import reproducible_training
 
-        motions = list(motions)
-        if not motions:
-            raise EngineError(f"engine {self.info.name!r}: no training motions")
-        signature = motions[0].skeleton.signature()
-        if any(m.skeleton.signature() != signature for m in motions):
-            raise EngineError(f"engine {self.info.name!r}: training motions must share one skeleton layout")
+        motions = self.training_motions(motions)
         with reproducible_training(self.params.seed):
             self._train(motions)
-        self.skeleton_signature_ = signature
+        self.skeleton_signature_ = motions[0].skeleton.signature()
         return self
 
     def _train(self, motions: list[Motion]) -> None:

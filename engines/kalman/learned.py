@@ -123,19 +123,7 @@ class LearnedKalman(Engine):
 
     # -- training -------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "LearnedKalman":
-        motions = [m for m in motions]
-        if not motions:
-            raise EngineError("engine 'kalman-learned': fit needs at least one training motion")
-        sig = motions[0].skeleton.signature()
-        for m in motions[1:]:
-            if m.skeleton.signature() != sig:
-                raise EngineError(
-                    f"engine 'kalman-learned': the training motions use different skeletons "
-                    f"({motions[0].name or 'motion 0'} vs {m.name or 'another'}); train on one skeleton layout"
-                )
-            if abs(m.fps - motions[0].fps) > 1e-6:
-                raise EngineError(f"engine 'kalman-learned': the training motions mix frame rates "
-                                  f"({motions[0].fps:g} and {m.fps:g} fps)")
+        motions = self.training_motions(motions, same_fps=True)
         joints = _model_joints(motions[0])
         cols = joint_angle_columns(joints)
         G = joints.size
@@ -168,7 +156,7 @@ class LearnedKalman(Engine):
         self.joints_, self.fps_, self.mean_ = joints, float(motions[0].fps), mean
         self.A1_, self.A2_, self.offset_, self.Q_fit_, self.Q_cv_ = A1, A2, offset, Q_fit, Q_cv
         self.n_frames_ = int(sum(x.shape[0] for x in clips))
-        self.skeleton_signature_ = sig
+        self.skeleton_signature_ = motions[0].skeleton.signature()
         return self
 
     # -- fitted state ---------------------------------------------------------------
@@ -206,7 +194,7 @@ class LearnedKalman(Engine):
                               f"this take is {motion.fps:g} fps (use learned_dynamics=false or retrain)")
         p = prepare(observation)
         Y, (q, r) = smooth_channels(p.bridged, p.mask)           # kalman for every channel
-        F, G = motion.n_frames, self.joints_.size
+        F = motion.n_frames
         obs_j = observation.observed[:, self.joints_]             # (F, G)
         use = obs_j.sum(axis=0) >= 3
         if F >= 3 and use.any():

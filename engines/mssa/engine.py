@@ -210,12 +210,7 @@ class MSSA(Engine):
 
     def fit(self, motions: Sequence[Motion], /) -> "MSSA":
         """Learn the filter bases of both spaces from clean motions of one skeleton layout."""
-        if not motions:
-            raise EngineError("mssa: fit needs at least one clean motion")
-        layouts = {m.skeleton.signature() for m in motions}
-        if len(layouts) > 1:
-            raise EngineError(f"mssa: the training motions mix {len(layouts)} skeleton layouts; "
-                              "fit one skeleton at a time")
+        motions = self.training_motions(motions)
         M = self.params.window_frames
         if max(m.n_frames for m in motions) < M:
             raise EngineError(f"mssa: no training motion has the {M} frames a window needs")
