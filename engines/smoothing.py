@@ -40,7 +40,7 @@ from scipy.linalg import solveh_banded
 
 from workbench.core.channels import interpolate_gaps
 from workbench.core.kinematics import short_lever_joints
-from workbench.core.motion import angle_joints, joint_angle_columns
+from workbench.core.motion import angle_joints, angle_slice, joint_angle_columns
 
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10
@@ -364,7 +364,7 @@ def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions
     :func:`smooth_and_fill`, when the caller has it."""
     short = short_lever_joints(skeleton, short_lever_cm, observed)
     reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed)
-    reference = reference[:, 3:].reshape(positions.shape)
+    reference = reference[:, angle_slice(skeleton)].reshape(positions.shape)
     lever = np.array([j for j in short_lever_joints(skeleton, angle_lever_cm, observed)
                       if j not in short and len(skeleton.aimed_descendants[j]) == 1], int)
     quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever)]

@@ -66,13 +66,14 @@ def cmd_data(args) -> int:
           f"{'split':10s} {'frames':>6s} {'fps':>4s}")
     for c in clips:
         print(f"{c.id:{wide['id']}s}  {c.category:{wide['category']}s}  {c.subject or c.style:{wide['who']}s}  "
-              f"{c.split or '-':10s} {c.frames or '?':>6} {c.fps or '?':>4g}")
+              f"{c.split or '-':10s} {c.frames or '?':>6} {f'{c.fps:g}' if c.fps else '?':>4}")
     for name in dict.fromkeys(c.dataset for c in clips):
         mine = [c for c in clips if c.dataset == name]
         counts = ", ".join(f"{n} {s}" for s in SPLITS if (n := sum(c.split == s for c in mine)))
         rates = "/".join(f"{r:g}" for r in sorted({c.fps for c in mine if c.fps}))
-        print(f"{name or 'clips'}: {len(mine)} clips ({counts or 'in no split'}), "
-              f"{sum(c.frames for c in mine):,} frames" + (f" at {rates} fps" if rates else ""))
+        frames = sum(c.frames for c in mine)
+        print(f"{name or 'clips'}: {len(mine)} clips ({counts or 'in no split'})"
+              + (f", {frames:,} frames" if frames else "") + (f" at {rates} fps" if rates else ""))
     if any(c.dataset == "cmu" for c in clips):
         print("Frame 0 of the cgspeed conversions (cmu) is a T-pose reference frame; loading drops it.")
     return 0
@@ -196,8 +197,8 @@ def cmd_clean(args) -> int:
 
 # -- bench ------------------------------------------------------------------------------
 def _bench_clips(args):
-    """The clips to benchmark: of every dataset (or ``--dataset``), those in ``--split``,
-    or all of them where none of the matching clips is in a split."""
+    """The catalogue clips to benchmark: of every dataset (or ``--dataset``), those in
+    ``--split``, or all of them where none of the matching clips is in a split."""
     from .data import catalogue, find_data_root, select
 
     root = find_data_root(args.data)
@@ -212,7 +213,7 @@ def _bench_clips(args):
     if not chosen:
         raise UserError(f"no clips match split={args.split!r} dataset={args.dataset!r} clips={args.clips!r} "
                         f"under {root}")
-    return [(c.id, c.load()) for c in chosen]
+    return chosen
 
 
 def _bench_notes(result) -> None:
@@ -221,7 +222,7 @@ def _bench_notes(result) -> None:
     from .data.quality import MAX_TURN_DPS
 
     if result.skipped:
-        print(f"note: {len(result.skipped)} clips are too short for {result.corruption} and were left out:",
+        print(f"note: {len(result.skipped)} clips could not be corrupted with {result.corruption} and were left out:",
               file=sys.stderr)
         for clip, reason in result.skipped.items():
             print(f"  {clip}: {reason}", file=sys.stderr)
@@ -244,7 +245,8 @@ def cmd_bench(args) -> int:
     from .evaluate import run_benchmark
 
     specs = split_engine_specs(args.engines)
-    clips = _bench_clips(args)
+    chosen = _bench_clips(args)
+    clips = [(c.id, c.load()) for c in chosen]
     seeds = list(range(args.seed0, args.seed0 + args.seeds))
     print(f"benchmark: {len(specs)} engines x {len(clips)} clips x {len(seeds)} seeds, corruption {args.corrupt}",
           file=sys.stderr)
@@ -252,12 +254,13 @@ def cmd_bench(args) -> int:
     if args.verbose:
         def progress(msg):
             print("  " + msg, file=sys.stderr)
-    result = run_benchmark(specs, args.corrupt, clips, seeds, progress=progress)
+    result = run_benchmark(specs, args.corrupt, clips, seeds, progress=progress,
+                           datasets={c.id: c.dataset for c in chosen})
     datasets = result.datasets()
     if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
         for name, ids in datasets.items():
             print(f"{name or 'clips'} ({len(ids)} clips):")
-            print(result.markdown(ids))
+            print(result.markdown(name))
             print()
     else:
         print(result.markdown())
@@ -305,17 +308,12 @@ def cmd_train(args) -> int:
     train = select(clips, "train") or select(clips, None)
     if not train:
         raise UserError(f"no training clips under {root}" + (f" in dataset {dataset!r}" if dataset else ""))
-    motions = [c.load() for c in train]
-    moving = {m.skeleton.names[j] for m in motions for j in m.skeleton.translated}
-    if moving:
-        raise UserError(f"engine {engine.info.name!r} cannot be trained on skeletons with translated joints yet "
-                        f"(these takes move {', '.join(sorted(moving))} by position channels); clean them with a "
-                        "classical engine: kalman, gaussian, butterworth, lerp, spline")
-    layouts = {m.skeleton.signature() for m in motions}
-    if len(layouts) > 1:
-        keep = motions[0].skeleton.signature()
-        motions = [m for m in motions if m.skeleton.signature() == keep]
-        print(f"note: training on the {len(motions)} clips of the first clip's skeleton only", file=sys.stderr)
+    loaded = [(c, c.load()) for c in train]
+    layout = loaded[0][1].skeleton.signature()
+    used = [(c, m) for c, m in loaded if m.skeleton.signature() == layout]
+    if len(used) < len(loaded):
+        print(f"note: training on the {len(used)} clips of the first clip's skeleton only", file=sys.stderr)
+    motions = engine.training_motions([m for _, m in used])  # the checks fit makes, before the time it takes
     print(f"training {engine.spec} on {len(motions)} clips ({sum(m.n_frames for m in motions):,} frames)",
           file=sys.stderr)
     resident = reset_peak_resident()
@@ -335,7 +333,7 @@ def cmd_train(args) -> int:
         print(f"test split, {corruption}: " + ", ".join(f"{k} {v:.3f}" for k, v in summary.items()), file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.default_weights_dir().name)
     try:
-        training = {"clips": [c.id for c in train], "split": "train", "minutes": round(minutes, 2)}
+        training = {"clips": [c.id for c, _ in used], "split": "train", "minutes": round(minutes, 2)}
         if not np.isnan(peak_mb):
             training["peak_mb"] = round(peak_mb)
         manifest = engine.save(out, {"training": training, "validation": validation})
@@ -370,6 +368,7 @@ def cmd_report(args) -> int:
 
     if Path(args.output).suffix.lower() not in FORMATS:
         raise UserError(f"the report must be a .png or .pdf file, not {args.output!r}")
+
     def refused(spec: str, message: str) -> None:
         print(f"note: {spec} left out: {message}", file=sys.stderr)
 

@@ -19,7 +19,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -79,10 +79,13 @@ def format_value(metric: str, value: float) -> str:
 class BenchResult:
     """Per-row results and per-engine summaries, keyed by each spec exactly as given.
 
-    ``skipped``: the clips too short (or otherwise unfit) for the corruption, with the
-    reason, left out for every engine. ``refused``: per engine, the clips it refused to
-    clean (an engine trained for another skeleton, a filter longer than the take), with
-    its message; its summary is over the clips it cleaned."""
+    ``skipped``: the clips the corruption could not be applied to (too short for a
+    block), with the reason, left out for every engine. ``refused``: per engine, the
+    clips it refused to clean (an engine trained for another skeleton, a filter longer
+    than the take), with its message; its summary is over the clips it cleaned.
+    ``dataset_of``: each clip's dataset, where the caller said; ``peaks``: per engine, the
+    ``peak_mb`` of each dataset, measured on its longest case (the summary's is the
+    largest)."""
 
     corruption: str
     seeds: list[int]
@@ -93,39 +96,40 @@ class BenchResult:
     glitches: dict[str, list[Glitch]] = field(default_factory=dict)
     skipped: dict[str, str] = field(default_factory=dict)
     refused: dict[str, dict[str, str]] = field(default_factory=dict)
+    dataset_of: dict[str, str] = field(default_factory=dict)
+    peaks: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {"corruption": self.corruption, "seeds": self.seeds, "clips": self.clips,
                 "rows": self.rows, "summary": self.summary,
-                "summary_by_dataset": {name: self.summarise(clips) for name, clips in self.datasets().items()},
+                "summary_by_dataset": {name: self.summarise(name) for name in self.datasets()},
                 "skipped": self.skipped, "refused": self.refused,
                 "reference_glitches": {clip: [dataclasses.asdict(g) for g in found]
                                        for clip, found in self.glitches.items()}}
 
     def datasets(self) -> dict[str, list[str]]:
-        """The benchmarked clips by dataset (the first part of a clip id, ``cmu`` of
-        ``cmu/walk/35_31``), in benchmark order."""
+        """The benchmarked clips by dataset (``dataset_of``; "" where it is not known), in
+        benchmark order."""
         out: dict[str, list[str]] = {}
         for clip in self.clips:
-            out.setdefault(clip.split("/")[0] if "/" in clip else "", []).append(clip)
+            out.setdefault(self.dataset_of.get(clip, ""), []).append(clip)
         return out
 
-    def summarise(self, clips: Sequence[str]) -> dict[str, dict[str, float]]:
-        """Per engine, the summary over the rows of ``clips`` only: each metric's mean and
-        the throughput (``peak_mb`` is the engine's over the whole run)."""
-        chosen = set(clips)
+    def summarise(self, dataset: str) -> dict[str, dict[str, float]]:
+        """Per engine, the summary over the rows of one dataset's clips: each metric's
+        mean, the throughput and the dataset's ``peak_mb``."""
+        chosen = set(self.datasets().get(dataset, ()))
         out = {}
-        for spec, whole in self.summary.items():
-            rows = [r for r in self.rows if r["engine"] == spec and r["clip"] in chosen]
-            out[spec] = summarise_rows(rows)
-            if "peak_mb" in whole and rows:
-                out[spec]["peak_mb"] = whole["peak_mb"]
+        for spec in self.summary:
+            out[spec] = summarise_rows([r for r in self.rows if r["engine"] == spec and r["clip"] in chosen])
+            if dataset in self.peaks.get(spec, {}):
+                out[spec]["peak_mb"] = self.peaks[spec][dataset]
         return out
 
-    def markdown(self, clips: Sequence[str] | None = None) -> str:
-        """The summary table, over all clips or over ``clips``; "–" for an engine that
+    def markdown(self, dataset: str | None = None) -> str:
+        """The summary table, over all clips or over one dataset's; "–" for an engine that
         cleaned none of them."""
-        summary = self.summary if clips is None else self.summarise(clips)
+        summary = self.summary if dataset is None else self.summarise(dataset)
         cols = [m for m in (*METRICS, *COST_COLUMNS) if any(m in s for s in summary.values())]
         head = "| engine | " + " | ".join(cols) + " |"
         lines = [head, "|" + "---|" * (len(cols) + 1)]
@@ -179,15 +183,19 @@ def run_benchmark(
     clips: Sequence[tuple[str, Motion]],
     seeds: Sequence[int] = (0,),
     progress: Callable[[str], None] | None = None,
+    datasets: Mapping[str, str] | None = None,
 ) -> BenchResult:
     """Corrupt each clip with each seed, clean it with each engine, score it. Engines are
-    spec strings or ready engine objects (keyed by their ``spec``). A clip the corruption
-    cannot be applied to (too short for a block) is skipped, and a clip an engine refuses
-    (EngineError) is left out of that engine's rows; both are recorded with the reason."""
+    spec strings or ready engine objects (keyed by their ``spec``); ``datasets``: each
+    clip's dataset, for summaries per dataset. A clip the corruption cannot be applied to
+    (too short for a block) is skipped, and a clip an engine refuses (EngineError) is
+    left out of that engine's rows; both are recorded with the reason. Raises
+    CorruptionApplyError when the corruption fits no clip."""
     engines = {(e if isinstance(e, str) else e.spec): (registry.create(e) if isinstance(e, str) else e)
                for e in engine_specs}
     result = BenchResult(corruption=str(parse_corruption(corruption)), seeds=list(seeds), clips=[],
-                         glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))})
+                         glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))},
+                         dataset_of=dict(datasets or {}))
     cases: list[tuple[str, Case]] = []
     for clip_id, motion in clips:
         try:
@@ -197,6 +205,9 @@ def run_benchmark(
             result.glitches.pop(clip_id, None)
             continue
         result.clips.append(clip_id)
+    if clips and not cases:
+        first = next(iter(result.skipped.items()))
+        raise CorruptionApplyError(f"{result.corruption} fits none of the {len(clips)} clips; {first[0]}: {first[1]}")
     for spec, engine in engines.items():
         warm = False
         refused: dict[str, str] = {}
@@ -223,13 +234,17 @@ def run_benchmark(
         if refused:
             result.refused[spec] = refused
         summary = summarise_rows([r for r in result.rows if r["engine"] == spec])
-        accepted = [case for clip_id, case in cases if clip_id not in refused]
-        if accepted:  # memory in a clean of its own, so that its page faults stay out of the timings
-            longest = max(accepted, key=lambda c: c.truth.n_frames).observation
-            before = reset_peak_resident()
-            engine.clean(longest)
-            peak = resident_mb("VmHWM") - before
-            if not math.isnan(peak):
-                summary["peak_mb"] = max(peak, 0.0)
+        # memory in a clean of its own per dataset, so that its page faults stay out of the timings
+        for name, ids in result.datasets().items():
+            accepted = [case for clip_id, case in cases if clip_id in set(ids) and clip_id not in refused]
+            if accepted:
+                longest = max(accepted, key=lambda c: c.truth.n_frames).observation
+                before = reset_peak_resident()
+                engine.clean(longest)
+                peak = resident_mb("VmHWM") - before
+                if not math.isnan(peak):
+                    result.peaks.setdefault(spec, {})[name] = max(peak, 0.0)
+        if result.peaks.get(spec):
+            summary["peak_mb"] = max(result.peaks[spec].values())
         result.summary[spec] = summary
     return result

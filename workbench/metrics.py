@@ -53,11 +53,13 @@ def body_joints(skeleton) -> np.ndarray:
 
 
 def joint_position_error_cm(truth: Motion, estimate: Motion) -> np.ndarray:
-    """(F, J) root-aligned Euclidean joint position errors in cm."""
+    """(F, J) Euclidean joint position errors in cm: root-aligned for the body joints, in
+    world space for the root chain's joints above the body root (a reference node)."""
     _check(truth, estimate)
-    root = truth.skeleton.body_root
+    root, above = truth.skeleton.body_root, list(truth.skeleton.root_chain[:-1])
     t = truth.positions - truth.positions[:, root:root + 1]
     e = estimate.positions - estimate.positions[:, root:root + 1]
+    t[:, above], e[:, above] = truth.positions[:, above], estimate.positions[:, above]
     return np.linalg.norm(e - t, axis=2) * truth.skeleton.unit_cm
 
 

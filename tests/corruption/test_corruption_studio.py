@@ -66,6 +66,9 @@ def test_a_span_shorter_than_a_frame_or_a_take_is_refused_clearly(studio_take):
         parse_corruption("gaps:0.1,0.01s").apply(studio_take)
     with pytest.raises(CorruptionApplyError, match="block:10s needs a clip of at least 302 frames"):
         parse_corruption("block:10s").apply(studio_take)
+    with pytest.raises(CorruptionApplyError, match=r"N = 0.01s is 0 frames at 30 fps; it must be at least 1"):
+        parse_corruption("block:0.01s").apply(studio_take)
+    assert parse_corruption("block:0s").apply(studio_take).observed.all()  # no block, as block:0
 
 
 def test_a_studio_take_s_channel_matrix(studio_take):

@@ -91,7 +91,7 @@ ROOT base
     CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
     JOINT knee
     {
-      OFFSET 0 -40 0
+      OFFSET 0.5 -40 0.000001
       CHANNELS 6 Zrotation Xposition Xrotation Yposition Yrotation Zposition
       End Site
       {
@@ -116,9 +116,9 @@ Frame Time: 0.0333333
 
 def test_position_channels_replace_the_offset_on_any_joint(tmp_path):
     """As Blender and bvhio read it: the root's OFFSET is not added to its position
-    channels; the hip's varying channels are its translation (the OFFSET 5 0 0 is
-    ignored); the knee's constant ones (0.5, -40, 0 in a mixed channel order) are folded
-    into its offset; and the file writes back with its OFFSET lines and layout."""
+    channels; the hip's channels are its translation (the OFFSET 5 0 0 is ignored); the
+    knee's (0.5, -40, 0 in a mixed channel order) repeat its OFFSET as printed and are
+    folded into its offset; and the file writes back with its OFFSET lines and layout."""
     p = tmp_path / "any.bvh"
     p.write_text(ROOT_WITH_OFFSET)
     m = read_bvh(p)
@@ -127,7 +127,7 @@ def test_position_channels_replace_the_offset_on_any_joint(tmp_path):
     np.testing.assert_array_equal(m.root_positions, [[1, 2, 4]] * 3)
     np.testing.assert_array_equal(m.translations[:, 0], [[7, 100, -5], [7, 110, -5], [7, 120, -5]])
     np.testing.assert_array_equal(sk.offsets[[0, 2, 3]], [[0, 0, 0], [0.5, -40, 0], [0, 30, 0]])
-    np.testing.assert_array_equal(sk.file_offsets[:3], [[10, 20, 30], [5, 0, 0], [0, -40, 0]])
+    np.testing.assert_array_equal(sk.file_offsets[:3], [[10, 20, 30], [5, 0, 0], [0.5, -40, 1e-6]])
     np.testing.assert_array_equal(m.angles_deg[1, 0], [0, 10, 3])   # base: Y Z X order, as in the file
     np.testing.assert_array_equal(m.angles_deg[2, 2], [30, -10, 5])  # knee: Z X Y
     np.testing.assert_allclose(m.positions[0, 0], [1, 2, 4])          # no OFFSET added
@@ -137,10 +137,20 @@ def test_position_channels_replace_the_offset_on_any_joint(tmp_path):
     out = tmp_path / "out.bvh"
     write_bvh(out, m)
     text = out.read_text()
-    assert "OFFSET 10 20 30" in text and "OFFSET 5 0 0" in text and "OFFSET 0 -40 0" in text
+    assert "OFFSET 10 20 30" in text and "OFFSET 5 0 0" in text and "OFFSET 0.5 -40 1e-06" in text
     assert "CHANNELS 6 Zrotation Xposition Xrotation Yposition Yrotation Zposition" in text
     back = read_bvh(out)
     assert np.array_equal(back.channels, m.channels) and back.skeleton.signature() == sk.signature()
+
+
+def test_a_hips_that_stands_still_is_still_translated(studio_take, tmp_path):
+    """The layout does not hang on the motion: a take whose Hips holds one place (a pose)
+    still has it translated, as its channels are not its OFFSET line."""
+    path = tmp_path / "pose.bvh"
+    write_bvh(path, studio_take.replace(translations=np.broadcast_to(studio_take.translations[:1],
+                                                                    studio_take.translations.shape)))
+    pose = read_bvh(path)
+    assert pose.skeleton.signature() == studio_take.skeleton.signature() and pose.skeleton.root_chain == (0, 1)
 
 
 def test_a_studio_take_loads_in_the_other_reader(studio_take, tmp_path):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.motion import channel_count, channel_mask, position_unknown
+from ..metrics import body_joints
 from ..plots import plot_bone_lengths, plot_data_weights, plot_errors, plot_filter_widths, plot_note
 from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
 from ..plots.timeline import Series
@@ -24,10 +25,10 @@ def error_series(take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -
     run) with the noisy error of that joint faint behind it. On a take without a truth a
     run's errors are how far it moved the recording (:class:`.take.Track`), and there are
     no noisy lines."""
-    names = take.motion.skeleton.names
+    names, body = take.motion.skeleton.names, body_joints(take.motion.skeleton)
     noisy, per_run = take.noisy.errors_cm, [r.track.errors_cm for r in runs]
-    series = [] if noisy is None else [Series("noisy (RMS)", rms_over_joints(noisy), NOISY, 1.2)]
-    series += [Series(f"{r.spec} (RMS)", rms_over_joints(e), engine_colour(i), 2.0)
+    series = [] if noisy is None else [Series("noisy (RMS)", rms_over_joints(noisy[:, body]), NOISY, 1.2)]
+    series += [Series(f"{r.spec} (RMS)", rms_over_joints(e[:, body]), engine_colour(i), 2.0)
                for i, (r, e) in enumerate(zip(runs, per_run))]
     for k, j in enumerate(selected):
         colour = JOINTS[k % len(JOINTS)]

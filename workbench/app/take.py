@@ -17,6 +17,7 @@ import numpy as np
 
 from ..core.motion import Motion, Observation
 from ..io import MOTION_SUFFIXES, read_motion
+from ..metrics import body_joints, joint_position_error_cm
 from ..render.scene import skeleton_points
 
 DEFAULT_CLIP = "cmu/walk/35_31"
@@ -91,8 +92,6 @@ class Track:
 
     @classmethod
     def of(cls, motion: Motion, reference: Motion | None) -> Track:
-        from ..metrics import joint_position_error_cm
-
         errors = None if reference is None else joint_position_error_cm(reference, motion)
         return cls(motion, skeleton_points(motion), errors)
 
@@ -146,7 +145,8 @@ class Take:
         rounded up to a whole number of cm (5 cm without a truth)."""
         if self.noisy.errors_cm is None:
             return 0.0, 5.0
-        return 0.0, float(max(1.0, np.ceil(np.percentile(self.noisy.errors_cm, 95))))
+        body = body_joints(self.motion.skeleton)
+        return 0.0, float(max(1.0, np.ceil(np.percentile(self.noisy.errors_cm[:, body], 95))))
 
 
 def make_take(motion: Motion, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, source: str = "",
@@ -214,8 +214,9 @@ def run_engine(spec: str, take: Take) -> EngineRun:
 
 def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[int]:
     """Child joints of the bones to box-plot: those ending at the selected joints, else
-    the ``n`` longest bones of the rest pose (a translated joint ends no bone)."""
-    bones = [j for j in range(skeleton.n_joints) if skeleton.parents[j] >= 0 and j not in skeleton.translated]
+    the ``n`` longest bones of the rest pose (the root chain has none: a moving Hips
+    under a reference root is carried, not a bone)."""
+    bones = [j for j in range(1, skeleton.n_joints) if j not in skeleton.root_chain]
     chosen = [j for j in selected if j in bones][:n]
     if chosen:
         return chosen

@@ -40,6 +40,9 @@ def forward_kinematics(
     positions (F, 3), the angles (F, J, 3) and the translations (F, T, 3) of the
     skeleton's translated joints, which take the place of their offsets (needed when it
     has any). ``local``: the angles' :func:`local_rotations`, when the caller has them."""
+    if skeleton.translated and translations is None:
+        raise ValueError(f"the skeleton has {len(skeleton.translated)} translated joints: FK needs their "
+                         "translations (F, T, 3)")
     R_local = local_rotations(skeleton, np.asarray(angles_deg, float)) if local is None else local
     F, J = R_local.shape[:2]
     R = np.empty_like(R_local)

@@ -36,7 +36,8 @@ class Skeleton:
 
     names: J joint names; parents: J parent indices (parents[j] < j, root -1);
     offsets: (J, 3) each joint's local translation from its parent where no channel
-    animates it (see the module docstring; zero for a root with position channels);
+    animates it (see the module docstring; zero for a root with position channels), and
+    for a translated joint its OFFSET line, which FK ignores and the rest pose uses;
     channels: per joint the channel names as written in the file, in the file's order
     (0 or 3 rotations and 0 or 3 positions, on any joint); end_sites: (parent joint index,
     offset (3,)) for each End Site; unit_cm: cm per unit; translated: the non-root joints,

@@ -5,8 +5,9 @@ Units: angles in degrees, root positions in the skeleton's file unit
 (``skeleton.unit_cm`` cm each), time in frames at ``motion.fps``; spatial noise levels
 are given in centimetres. A parameter counted in frames may be given in seconds instead
 (``block:2s``, ``gaps:0.0003,2s,4s``): a :class:`Seconds` value, turned into frames at
-the frame rate of the take it corrupts (:meth:`Work.frames`), so that one spec means the
-same at 30 and at 120 fps.
+the frame rate of the take it corrupts (:meth:`Work.frames`), so that a span lasts as
+long at 30 as at 120 fps. Probabilities stay per frame: ``gaps:P`` starts a quarter as
+many gaps a second at 30 fps as at 120 (``gaps:4P`` starts as many).
 """
 
 from __future__ import annotations
@@ -81,6 +82,7 @@ class Seconds:
     def __str__(self) -> str:
         return format_number(self.value) + "s"
 
+
 def random_stream(seed: int, position: int, name: str) -> np.random.Generator:
     """The random stream of the model at ``position`` (0-based) in a chain applied with
     ``seed``: independent of every other model's stream."""
@@ -114,9 +116,10 @@ class Work:
         _, integer, lo, _ = _KINDS[p.kind]
         frames = value.value * self.clean.fps
         frames = int(math.floor(frames + 0.5)) if integer else frames
-        if frames < lo:
+        least = lo if p.kind == "frame" or value.value == 0 else max(lo, 1.0)  # a span of some seconds: a frame
+        if frames < least:
             raise CorruptionApplyError(f"{model}: {p.name} = {value} is {format_number(frames)} frames at "
-                                       f"{self.clean.fps:g} fps; it must be at least {format_number(lo)}")
+                                       f"{self.clean.fps:g} fps; it must be at least {format_number(least)}")
         return frames
 
     @property
@@ -129,7 +132,7 @@ class Work:
         return angle_columns(self.skeleton)
 
     @cached_property
-    def body_joints(self) -> np.ndarray:
+    def gap_joints(self) -> np.ndarray:
         """Indices of the joints outside the root chain (``skeleton.root_chain``, whose
         motion is the trajectory): the joints a missing-data model hides one by one."""
         return np.setdiff1d(np.arange(self.skeleton.n_joints), self.skeleton.root_chain)

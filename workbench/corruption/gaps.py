@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Model, Param, Work
+from .base import Model, Param, Seconds, Work
 from .errors import CorruptionApplyError
 
 
@@ -34,13 +34,13 @@ class Gaps(Model):
               Param("MEAN", "mean-frames", "mean gap length, frames", 12.0),
               Param("MAX", "frames", "longest gap, frames", 600))
     p: float
-    mean: float = 12.0
-    max: int = 600
+    mean: float | Seconds = 12.0
+    max: int | Seconds = 600
 
     def events(self, work: Work, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Draw the gaps among ``work.body_joints``: (start frames, joints, lengths
+        """Draw the gaps among ``work.gap_joints``: (start frames, joints, lengths
         (capped, not cut at the clip end)), in frame-major order."""
-        joints = work.body_joints
+        joints = work.gap_joints
         starts = rng.random((work.n_frames, joints.size)) < self.p
         frames, cols = np.nonzero(starts)
         lengths = rng.geometric(1.0 / work.frames(self, "mean"), size=frames.size)
@@ -68,8 +68,8 @@ class Block(Model):
                    "frame on each side, or starting at frame START")
     params = (Param("N", "frame-count", "number of missing frames"),
               Param("START", "frame", "first missing frame (default: random)", None))
-    n: int
-    start: int | None = None
+    n: int | Seconds
+    start: int | Seconds | None = None
 
     def first_frame(self, work: Work, rng: np.random.Generator) -> int:
         n_frames, n = work.n_frames, work.frames(self, "n")
@@ -125,5 +125,5 @@ class Drop(Model):
     p: float
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
-        joints = work.body_joints
+        joints = work.gap_joints
         work.observed[:, joints] &= ~(rng.random((work.n_frames, joints.size)) < self.p)

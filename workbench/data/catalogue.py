@@ -6,7 +6,7 @@ is read from it; any other folder of BVH or AMC files is catalogued by walking i
 the suffix, e.g. ``cmu/walk/02_01``.
 
 Reference frames: the cgspeed conversions put a T-pose (rest) frame in frame 0 that was
-never captured. :meth:`Clip.load` drops it when frame 0 looks like one: its root
+never captured. :meth:`Clip.load` drops it when frame 0 looks like one: the body root's
 rotation is exactly zero and its joint angles are on average less than half of
 frame 1's. ``Clip.load(keep_reference=True)`` keeps every frame.
 

@@ -8,7 +8,8 @@ value throughout the take it is folded into the skeleton, where they vary the jo
 translated (:mod:`workbench.core.skeleton`). Angles stay in degrees, lengths in the
 file's unit. Every problem is a :class:`MotionFileError` naming the file and line.
 Writing is atomic and keeps the channel layout, the Euler orders and the OFFSET lines
-of the skeleton, so a file read and written back holds the same numbers.
+of the skeleton, so a file read and written back holds the same numbers (a folded
+joint's channels as frame 0's, which the other frames repeat up to printing).
 """
 
 from __future__ import annotations
@@ -242,18 +243,26 @@ def _column_layout(skeleton: Skeleton) -> list[tuple[int, bool, int]]:
     return layout
 
 
-#: position channels that stay this close (file units) to their first frame's value hold a
-#: constant translation: MotionBuilder prints 6 significant digits, so a translation of
-#: -5.5e-07 cm reads as -5.51765e-07 in one frame and -5.51764e-07 in the next
-CONSTANT_UNITS = 1e-6
+#: how close, relative to their size, two translations print as one: exporters print 6
+#: significant digits (MotionBuilder: -5.51765e-07 in one frame, -5.51764e-07 in the next)
+SAME_RELATIVE = 1e-5
+
+
+def _same_translation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Whether translations ``a`` and ``b`` (..., 3), in file units, are one as printed:
+    within :data:`SAME_RELATIVE` of the larger's length (and 1e-9 units)."""
+    scale = np.maximum(np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1))
+    return np.linalg.norm(a - b, axis=-1) <= SAME_RELATIVE * scale + 1e-9
 
 
 def _motion_from_values(header: Skeleton, fps: float, values: np.ndarray, name: str = "") -> Motion:
     """The Motion of a file's frame values (F, D) in the column layout of ``header``, the
-    skeleton as the hierarchy gives it: a non-root joint's position channels that stay
-    within ``CONSTANT_UNITS`` of frame 0's values are folded into its offset (and written
-    back as those), the others make it translated. The unit is guessed on the resulting
-    rest pose."""
+    skeleton as the hierarchy gives it. A non-root joint's position channels that repeat
+    its OFFSET line in every frame, as printed (:func:`_same_translation`; MotionBuilder
+    exports all six channels on every joint), are folded into its offset and written
+    back as frame 0's values; any other makes it translated: a moving Hips under a
+    reference root (even in a take where it stands still), a stretchy bone. The unit is
+    guessed on the resulting rest pose."""
     F, J = values.shape[0], header.n_joints
     root = np.zeros((F, 3))
     angles = np.zeros((F, J, 3))
@@ -263,8 +272,8 @@ def _motion_from_values(header: Skeleton, fps: float, values: np.ndarray, name: 
         target[:, j, slot] = values[:, col]
     if header.has_position[0]:
         root = local[:, 0]
-    spread = np.abs(local - local[:1]).max(axis=0).max(axis=1)  # NaN (missing) compares as moving
-    moving = [j for j in np.flatnonzero(header.has_position[1:]) + 1 if not spread[j] <= CONSTANT_UNITS]
+    rest = _same_translation(local, header.file_offsets[None]).all(axis=0)  # NaN (missing) is no rest
+    moving = [j for j in np.flatnonzero(header.has_position[1:]) + 1 if not rest[j]]
     offsets = np.array(header.offsets)
     fixed = header.has_position.copy()
     fixed[[0, *moving]] = False

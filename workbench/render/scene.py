@@ -39,10 +39,10 @@ def skeleton_points(motion) -> np.ndarray:
 
 def bone_lines(skeleton) -> np.ndarray:
     """VTK line cells joining every joint and End Site to its parent, indexing
-    :func:`skeleton_points`; none to a translated joint, which moves on its own (a studio
-    export's Hips under its reference node at the origin): that is no bone."""
+    :func:`skeleton_points`; none within the root chain (a studio export's Hips, carried
+    by its reference node at the origin, hangs from no bone)."""
     J = skeleton.n_joints
-    pairs = [(p, j) for j, p in enumerate(skeleton.parents) if p >= 0 and j not in skeleton.translated]
+    pairs = [(p, j) for j, p in enumerate(skeleton.parents) if p >= 0 and j not in skeleton.root_chain]
     pairs += [(p, J + e) for e, (p, _) in enumerate(skeleton.end_sites)]
     return np.array([(2, a, b) for a, b in pairs], dtype=np.int64).ravel()
 

@@ -138,13 +138,19 @@ def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | Sequen
 
 
 def conformance_clips(root=None, frames: int = 150, dataset: str | None = None) -> tuple[Motion, list[Motion]]:
-    """Short clean takes of the data root: the first training clip (of ``dataset`` when
-    given: the layout trained engines are fitted on; ``"cmu"`` with the team's data) and
-    a take of each other dataset whose skeleton has another layout (with the team's
-    data, a cmu-daz take and a Bandai take, whose Hips is translated)."""
+    """Short clean takes of the data root: the primary, the first training clip of
+    ``dataset`` (default: of the first dataset whose skeleton trained engines can model,
+    without translated joints; ``"cmu"`` with the team's data), and a take of each other
+    dataset whose skeleton has another layout (with the team's data, a cmu-daz take and
+    a Bandai take, whose Hips is translated)."""
     from ..data import catalogue
 
-    clips = sorted(catalogue(root), key=lambda c: (c.dataset != dataset, c.split != "train"))
+    clips = sorted(catalogue(root), key=lambda c: c.split != "train")
+    if dataset is None:  # the first dataset whose first clip has no translated joints
+        dataset = next((name for name in dict.fromkeys(c.dataset for c in clips)
+                        if not next(c for c in clips if c.dataset == name).load().skeleton.translated),
+                       clips[0].dataset)
+    clips.sort(key=lambda c: c.dataset != dataset)  # stable: the training clips first within each
     primary = clips[0].load().slice(0, frames)
     layouts, foreign = {primary.skeleton.signature()}, []
     for name in dict.fromkeys(c.dataset for c in clips):  # a take long enough of each dataset
