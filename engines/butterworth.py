@@ -25,7 +25,7 @@ from scipy.signal import butter, sosfiltfilt
 from workbench.core.motion import Observation
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
-from .identity import prepare
+from workbench.engine.signal import prepare
 
 
 def _padlen(sos: np.ndarray) -> int:

@@ -30,62 +30,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft as sfft
 
 from workbench.core.motion import Observation, channel_joints
 from workbench.engine import CleanResult, Engine, EngineInfo
-
-from .identity import prepare
+from workbench.engine.signal import normalized_gaussian, prepare
 
 #: certainty of the linearly bridged samples of a gap (observed samples have 1)
 GAP_CERTAINTY = 1e-3
-#: kernel radius in sigmas
-TRUNCATE = 4.0
-
-
-def gaussian_kernel(sigma_frames: float) -> np.ndarray:
-    """Sampled zero-mean Gaussian of std ``sigma_frames``, radius ``TRUNCATE`` sigma
-    (rounded), normalised to sum 1."""
-    radius = int(TRUNCATE * sigma_frames + 0.5)
-    i = np.arange(-radius, radius + 1, dtype=float)
-    k = np.exp(-0.5 * (i / sigma_frames) ** 2)
-    return k / k.sum()
-
-
-def convolve_time(A: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """Convolve every column of ``A`` (F, D) with a centred odd-length ``kernel`` along
-    time, zero outside the clip (FFT, exact up to rounding)."""
-    F = A.shape[0]
-    radius = kernel.size // 2
-    if radius == 0:
-        return A * kernel[0]
-    n = sfft.next_fast_len(F + 2 * radius, real=True)
-    spec = sfft.rfft(A, n=n, axis=0) * sfft.rfft(kernel, n=n)[:, None]
-    return sfft.irfft(spec, n=n, axis=0)[radius:radius + F]
-
-
-def normalized_gaussian(X: np.ndarray, certainty: np.ndarray, sigma_frames: float,
-                        columns: np.ndarray | None = None) -> np.ndarray:
-    """Normalised convolution of the columns of ``X`` (F, D) with a Gaussian of std
-    ``sigma_frames``: ``G*(c X) / G*c``, zero padded outside the clip. ``certainty`` is
-    (F, K): column ``columns[d]`` of it (default: d) is the certainty of column d of X;
-    K = 1 with ``columns`` None means one certainty for all columns. It must be
-    positive wherever the result is wanted."""
-    X = np.asarray(X, float)
-    c = np.asarray(certainty, float)
-    if c.ndim == 1:
-        c = c[:, None]
-    if columns is None:
-        columns = np.zeros(X.shape[1], int) if c.shape[1] == 1 else np.arange(X.shape[1])
-    k = gaussian_kernel(sigma_frames)
-    if np.all(c == 1.0):  # fully observed: one normaliser for every column
-        num = convolve_time(X, k)
-        den = convolve_time(np.ones((X.shape[0], 1)), k)
-        return num / den
-    num = convolve_time(c[:, columns] * X, k)
-    den = convolve_time(c, k)
-    return num / den[:, columns]
-
 
 class Gaussian(Engine):
     """Gap-aware Gaussian smoothing (Lou and Chai 2010; Mall et al. 2017's 58/125 ms)."""

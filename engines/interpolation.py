@@ -14,7 +14,7 @@ from __future__ import annotations
 from workbench.core.motion import Observation
 from workbench.engine import CleanResult, Engine, EngineInfo
 
-from .identity import fill_gaps
+from workbench.engine.signal import fill_gaps
 
 
 class Lerp(Engine):

@@ -21,8 +21,8 @@ def test_identity_bridges_gaps_and_keeps_observed(walk):
 
 def test_observation_bridged_is_what_the_engines_bridge(walk):
     """Observation.bridged (the corrupt command's BVH, the app's noisy skeleton) holds
-    the channels every angle engine starts from (engines.identity.bridge_gaps)."""
-    from engines.identity import bridge_gaps
+    the channels every angle engine starts from (workbench.engine.signal.bridge_gaps)."""
+    from workbench.engine.signal import bridge_gaps
     from workbench.corruption import parse_corruption
 
     obs = parse_corruption("angular:0.5+outliers:0.05+gaps:0.02").apply(walk, seed=4)

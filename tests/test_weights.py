@@ -1,4 +1,4 @@
-"""Weights on disk (workbench.weights): the round trip, the manifest's provenance, and a
+"""Weights on disk (workbench.engine.weights): the round trip, the manifest's provenance, and a
 clear refusal of every kind of bad file, never an unpickled one."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench import weights
+from workbench.engine import weights
 from workbench.engine import EngineError
-from workbench.weights import MANIFEST_FILE, WEIGHTS_FILE, code_commit, load_weights, save_weights
+from workbench.engine.weights import MANIFEST_FILE, WEIGHTS_FILE, code_commit, load_weights, save_weights
 
 
 @pytest.fixture
@@ -27,7 +27,7 @@ def test_round_trip_and_provenance(saved):
     assert manifest["engine"] == "demo" and manifest["params"] == {"k": 1}
     assert manifest["file"] == WEIGHTS_FILE and len(manifest["sha256"]) == 64
     head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                          cwd=Path(weights.__file__).resolve().parents[1])
+                          cwd=Path(weights.__file__).resolve().parents[2])
     if head.returncode == 0:  # a git checkout, as in CI
         assert manifest["code_commit"].split("+")[0] == head.stdout.strip()
 

@@ -14,7 +14,7 @@ Cleaning a take (Observation -> Motion):
    drop-outs would otherwise hide most of the body, a position being unknown wherever
    any ancestor's angles are (``drop:0.5``: cae 1.65 -> 0.29 cm, lerp 0.25). These short
    holes are bridged by the constant-velocity smoother's path
-   (:func:`engines.smoothing.smooth_and_fill`: a cubic spline through a clean take,
+   (:func:`workbench.engine.smoothing.smooth_and_fill`: a cubic spline through a clean take,
    a smoothing spline through a noisy one), the longer ones linearly. Test split, 5
    seeds, gap_mpjpe_cm, linear -> smoother: ``drop:0.3`` 0.133 -> 0.113, ``drop:0.5``
    0.265 -> 0.226 (spline 0.108 and 0.190: through clean samples a spline is best, but
@@ -22,7 +22,7 @@ Cleaning a take (Observation -> Motion):
    2.693), ``angular:0.5+gaps:0.01`` 2.520 -> 2.492, ``spatial:0.5+gaps:0.01`` 1.892 ->
    1.845. So are holes of at most ``partial_hole_frames`` (60; our addition) in frames
    where the root is observed (part of the body missing), in takes whose noise lets the
-   angles bridge them (:func:`engines.smoothing.angles_bridge_holes`: no outliers in
+   angles bridge them (:func:`workbench.engine.smoothing.angles_bridge_holes`: no outliers in
    the angles, and position noise below 0.5 cm or below the angles'). The network was
    trained on whole frames and whole joints missing; a joint's own holes of a few dozen
    frames the smoother of its angles bridges better. Validation (subjects 05/06 held
@@ -87,11 +87,11 @@ Cleaning a take (Observation -> Motion):
    the image is *anchored* to the observation (``anchor``, our addition; on by
    default): the network's miss at the known entries (known minus predicted) is
    smoothed row by row by the ``kalman`` engine's constant-velocity smoother
-   (:mod:`engines.smoothing`), bridged linearly across each hole and added to the
+   (:mod:`workbench.engine.smoothing`), bridged linearly across each hole and added to the
    prediction. The smoother's measurement noise is estimated from the observation
    (the miss's own fast wobble is the network's, to be kept), its smoothing ratio by
    the risk estimate on the miss. The noise variance is the mean square of the
-   observation's second differences (:func:`engines.smoothing.measurement_variance`
+   observation's second differences (:func:`workbench.engine.smoothing.measurement_variance`
    with ``robust=False``), not the median-based estimate the ``kalman`` engine uses on
    angles. Angle noise moves the joint positions with heavy tails (a hip's turn lifts
    the foot by 1 - cos), the median misses up to half their variance, and the smoother,
@@ -111,7 +111,7 @@ Cleaning a take (Observation -> Motion):
    cm; CMU: the hands and finger bases) are not aimed from positions, where a few
    mm of error turn a 3-cm lever by tens of degrees: they keep their observed
    angles, bridged linearly across the holes, as ``lerp`` does, and with ``anchor``
-   smoothed first (:func:`engines.smoothing.smooth_joint_angles`: position noise
+   smoothed first (:func:`workbench.engine.smoothing.smooth_joint_angles`: position noise
    makes the observed hand angles noisy too); IK aims them only when
    they are never observed. Test split, RMS angle error, aimed -> kept: no corruption
    0.088 -> 0.051 degrees (0.042 kept unsmoothed), 60-frame gap 2.28 -> 1.71,
@@ -121,7 +121,7 @@ Cleaning a take (Observation -> Motion):
    input. The joints aimed at one descendant within ``angle_lever_cm`` (13.5 cm; CMU:
    the feet, LowerBack, Spine, Neck, Neck1) keep their smoothed angles in the frames
    they are observed, when the take's noise is in the angles
-   (:func:`engines.smoothing.angles_are_quieter`): a toe's position then carries the
+   (:func:`workbench.engine.smoothing.angles_are_quieter`): a toe's position then carries the
    noise of the whole leg, and aimed at it from 13 cm the foot was off by 7-10 degrees
    under ``angular:0.5`` (kalman's feet: 1.6-2.0). Across their holes IK aims them and
    bridges the kept angles' departure from the aim, so they join without a jump.
@@ -173,10 +173,10 @@ from workbench.core.kinematics import forward_kinematics, inverse_kinematics, lo
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.engine import CleanResult, Engine, EngineError
 
-from ..blas import one_blas_thread
-from ..gaussian import normalized_gaussian
-from ..identity import bridge_gaps, rewrap_angles
-from ..smoothing import (angles_bridge_holes, cv_smooth, ik_reference, measurement_variance, smooth_and_fill,
+from workbench.engine.threads import one_blas_thread
+from workbench.engine.signal import normalized_gaussian
+from workbench.engine.signal import bridge_gaps, rewrap_angles
+from workbench.engine.smoothing import (angles_bridge_holes, cv_smooth, ik_reference, measurement_variance, smooth_and_fill,
                          smoothing_ratio)
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, reverse_time, trajectory, turn_y, wrap)
@@ -300,7 +300,7 @@ class ConvAutoencoderEngine(Engine):
     # -- training -------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "ConvAutoencoderEngine":
         """Train on clean motions of one skeleton layout (the training split)."""
-        from engines.torch_support import reproducible_training
+        from workbench.engine.torch_support import reproducible_training
 
         motions = self.training_motions(motions)
         with reproducible_training(self.params.seed):
@@ -359,7 +359,7 @@ class ConvAutoencoderEngine(Engine):
         return super().save(folder, {**(extra_manifest or {}), "loss_per_epoch": log})
 
     def state_arrays(self) -> dict[str, np.ndarray]:
-        from engines.torch_support import module_arrays
+        from workbench.engine.torch_support import module_arrays
 
         return {
             **module_arrays(self.net_, "net."),
@@ -370,7 +370,7 @@ class ConvAutoencoderEngine(Engine):
         }
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
-        from engines.torch_support import load_module_arrays
+        from workbench.engine.torch_support import load_module_arrays
 
         # older weights saw zeroed holes and ended on their last step's weights, and
         # recorded the view averaging of their day as two switches (now ``views``)
@@ -403,7 +403,7 @@ class ConvAutoencoderEngine(Engine):
         :func:`.representation.mirror_rows`, needed for the mirrored views."""
         import torch
 
-        from engines.torch_support import default_threads, torch_threads
+        from workbench.engine.torch_support import default_threads, torch_threads
 
         from .training import network_input
 
@@ -490,7 +490,7 @@ class ConvAutoencoderEngine(Engine):
         """The holes (F, J) that count as observed, bridged by the constant-velocity
         smoother of their angles: those of at most ``short_hole_frames``, and those of at
         most ``partial_hole_frames`` in frames where the root is observed, in takes whose
-        noise lets the angles bridge them (:func:`engines.smoothing.angles_bridge_holes`).
+        noise lets the angles bridge them (:func:`workbench.engine.smoothing.angles_bridge_holes`).
         ``channels`` (F, 3 + 3J): the observation's, gaps bridged (:func:`bridge_gaps`)."""
         p = self.params
         missing = ~observation.observed
@@ -508,9 +508,9 @@ class ConvAutoencoderEngine(Engine):
                       positions: np.ndarray, ref: np.ndarray,
                       ref_local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """What IK keeps of the observation: with ``anchor``
-        :func:`engines.smoothing.ik_reference` (its joints, frames and smoothed reference
+        :func:`workbench.engine.smoothing.ik_reference` (its joints, frames and smoothed reference
         angles, with their local rotations; ``smoothed``: the channels'
-        :func:`engines.smoothing.smooth_and_fill`); without it the bridged observation's
+        :func:`workbench.engine.smoothing.smooth_and_fill`); without it the bridged observation's
         reference angles and local rotations, and the short levers in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
         p = self.params

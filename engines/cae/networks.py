@@ -7,7 +7,7 @@ T must be a multiple of ``time_multiple`` (callers pad the clip); H is padded to
 multiple of ``row_multiple`` inside (the last row repeated) and cropped again. The body
 runs in channels_last layout, under bf16 autocast where the CPU runs bf16 natively (4-5x
 faster with AMX, PERFORMANCE.md; elsewhere bf16 is emulated and far slower, so the body
-runs in float32: :func:`engines.torch_support.bf16_is_native`); the output layer runs in
+runs in float32: :func:`workbench.engine.torch_support.bf16_is_native`); the output layer runs in
 float32 so the result carries no bf16 rounding. Weights start from He (kaiming)
 initialisation: with PyTorch's default the 2-D autoencoder does not learn here. Leaky
 ReLU slope 0.2.
@@ -34,7 +34,7 @@ import copy
 import torch
 from torch import nn
 
-from engines.torch_support import bf16_is_native
+from workbench.engine.torch_support import bf16_is_native
 
 LEAK = 0.2
 

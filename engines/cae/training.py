@@ -56,7 +56,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from engines.torch_support import progress
+from workbench.engine.torch_support import progress
 from workbench.core.channels import interpolate_frames, interpolate_gaps
 from workbench.core.motion import position_unknown
 

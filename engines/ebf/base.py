@@ -95,13 +95,13 @@ class WindowEngine(Engine):
         return Path(__file__).resolve().parent / "weights" / self.variant
 
     def state_arrays(self) -> dict[str, np.ndarray]:
-        from engines.torch_support import module_arrays
+        from workbench.engine.torch_support import module_arrays
 
         return {**module_arrays(self.net_, "net."), "norm_mean": self.norm_.mean, "norm_std": self.norm_.std,
                 "loss_history": np.asarray(self.loss_history_, np.float32)}
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
-        from engines.torch_support import load_module_arrays
+        from workbench.engine.torch_support import load_module_arrays
 
         self.params = dataclasses.replace(self.params, **self.trained_architecture(manifest))
         self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float))
@@ -155,7 +155,7 @@ class WindowEngine(Engine):
     def fit(self, motions: Sequence[Motion], /) -> "WindowEngine":
         """Train on clean motions of one skeleton (fresh corruption every epoch);
         progress bar and per-epoch losses on stderr."""
-        from engines.torch_support import reproducible_training
+        from workbench.engine.torch_support import reproducible_training
 
         motions = self.training_motions(motions)
         with reproducible_training(self.params.seed):

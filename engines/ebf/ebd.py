@@ -17,7 +17,7 @@ test split this made short gaps (``gaps:0.01``) 1.80 -> 1.17 cm ``gap_mpjpe_cm``
 1.16) and 3-s single-joint gaps 9.24 -> 8.56 cm (lerp 9.22). Root channels in gaps
 stay linearly bridged.
 
-Our addition: in takes whose angles are quiet (:func:`engines.smoothing.angles_are_quiet`:
+Our addition: in takes whose angles are quiet (:func:`workbench.engine.smoothing.angles_are_quiet`:
 less than 0.5 cm of noise, outliers included, as a joint's descendant sees it; a clean
 take, ``angular:0.1``, ``spatial:0.2``), the fill takes over not from the line but from
 the constant-velocity smoother's path across each hole of at most ``smooth_hole_frames``
@@ -52,9 +52,9 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
 from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
 
-from ..blas import one_blas_thread
-from ..identity import rewrap_angles
-from ..smoothing import angles_are_quiet, smooth_and_fill
+from workbench.engine.threads import one_blas_thread
+from workbench.engine.signal import rewrap_angles
+from workbench.engine.smoothing import angles_are_quiet, smooth_and_fill
 from .base import TrainingParams, WindowEngine
 from .features import RADIUS, FrameData
 
@@ -123,7 +123,7 @@ class EBD(WindowEngine):
         """(F, C) the angle channels the network's fill takes over from: bridged linearly,
         or, in holes of at most ``smooth_hole_frames`` with samples on both sides, along
         the constant-velocity smoother's path where the take's angles are quiet
-        (:func:`engines.smoothing.angles_are_quiet`)."""
+        (:func:`workbench.engine.smoothing.angles_are_quiet`)."""
         L = self.params.smooth_hole_frames
         holes = data.missing & (hole_length(data.missing) <= L)
         if not (L and holes.any() and angles_are_quiet(observation.skeleton, data.X, observation.observed)):

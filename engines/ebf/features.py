@@ -16,7 +16,7 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
 
-from ..identity import bridge_gaps
+from workbench.engine.signal import bridge_gaps
 
 #: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
 RADIUS = 15

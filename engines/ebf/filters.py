@@ -47,8 +47,8 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
 from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
 
-from ..blas import one_blas_thread
-from ..identity import rewrap_angles
+from workbench.engine.threads import one_blas_thread
+from workbench.engine.signal import rewrap_angles
 from .base import WindowEngine, TrainingParams
 from .features import RADIUS
 from .root import clean_root

@@ -100,7 +100,7 @@ class FilterStream:
     def push(self, frame: np.ndarray) -> np.ndarray | None:
         """Add the next frame (D,); returns the cleaned frame 15 frames back, or None
         while the first 15 frames are still waiting for their look-ahead."""
-        from engines.torch_support import torch_threads
+        from workbench.engine.torch_support import torch_threads
 
         with torch_threads(1):
             return self._push(frame)
@@ -133,7 +133,7 @@ class FilterStream:
     def flush(self) -> np.ndarray:
         """Clean the frames still waiting (the last frame repeated after the take);
         returns them (n, D) and resets the stream for a new take."""
-        from engines.torch_support import torch_threads
+        from workbench.engine.torch_support import torch_threads
 
         out = []
         with torch_threads(1):

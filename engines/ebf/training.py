@@ -18,7 +18,7 @@ from typing import Callable
 import numpy as np
 import torch
 
-from engines.torch_support import progress
+from workbench.engine.torch_support import progress
 
 from .features import FrameData, window_offsets
 

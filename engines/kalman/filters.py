@@ -5,7 +5,7 @@ Lou and Chai (2010, §4.2)'s "general Kalman filter" baseline (after Welch and B
 introduction to the Kalman filter): every degree of freedom filtered independently with
 a fixed, hand-chosen motion model. Theirs is a random walk (``z(t+1) = z(t) + N(0, s)``);
 ours is the constant-velocity model (velocity a random walk), which follows smooth
-motion at 120 fps without lag; see :mod:`engines.smoothing` for the model and
+motion at 120 fps without lag; see :mod:`workbench.engine.smoothing` for the model and
 the exact banded solver of its RTS smoother.
 
 Noise variances, per channel (channel units: degrees for angles, the file unit for the
@@ -17,7 +17,7 @@ root position and any translations):
 * process variance ``q`` [deg^2 / frame^4, the variance of the per-frame change of
   velocity]: ``q = r / lambda`` with ``lambda`` minimising Stein's unbiased risk
   estimate of the smoother's output error, computed from the channel's periodogram
-  (:func:`~engines.smoothing.smoothing_ratio`).
+  (:func:`~workbench.engine.smoothing.smoothing_ratio`).
 
 On CMU test clips with Gaussian noise of 0.1, 0.5 and 0.9 x each channel's std, the
 estimated noise std is within ~10 % of the true one and the smoothed error is within
@@ -38,8 +38,8 @@ import numpy as np
 from workbench.core.motion import Observation, length_columns
 from workbench.engine import CleanResult, Engine, EngineInfo
 
-from ..identity import bridge_gaps, prepare
-from ..smoothing import cv_smooth, estimate_noise, measurement_variance, smoothing_ratio
+from workbench.engine.signal import bridge_gaps, prepare
+from workbench.engine.smoothing import cv_smooth, estimate_noise, measurement_variance, smoothing_ratio
 
 
 def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_angles: float = 0.0,

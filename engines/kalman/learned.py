@@ -60,7 +60,7 @@ from workbench.core.channels import unwrap_deg
 from workbench.core.motion import Motion, Observation, joint_angle_columns
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
-from ..identity import prepare
+from workbench.engine.signal import prepare
 from .coupled import coupled_smooth
 from .filters import smooth_channels
 

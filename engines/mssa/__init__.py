@@ -18,7 +18,7 @@ the result goes back onto the observation's own angle branch. ``space="positions
 filters root-relative joint positions (F, 3J) in file units, computed by forward
 kinematics from that bridged observation; a position counts as observed where all its
 joint's ancestors are. The cleaned positions go back to angles by
-``inverse_kinematics`` with what :func:`engines.smoothing.ik_reference` keeps of the
+``inverse_kinematics`` with what :func:`workbench.engine.smoothing.ik_reference` keeps of the
 observation, as ``cae`` does, so bone lengths are the skeleton's: the observed angles
 smoothed by the ``kalman`` engine's smoother as the reference (twist about single-child
 bones and leaf rotations come from it); joints whose children all lie within
@@ -49,7 +49,7 @@ training mean.
 Root: the trajectory is not stationary (a walk drifts metres, the heading unwraps
 without bound), so short-window bases learned from other takes do not describe it. The
 root's position and orientation are smoothed instead by the ``kalman`` engine's
-smoother at the noise levels it finds in them (:func:`engines.smoothing.smooth_observed`;
+smoother at the noise levels it finds in them (:func:`workbench.engine.smoothing.smooth_observed`;
 gaps bridged linearly): the angle corruptions leave the root clean, as the paper
 assumes, and it passes almost unchanged, but joint-position noise solved back to
 angles (``spatial``) reaches it, and in angle mode a noisy root orientation turns the
@@ -70,7 +70,7 @@ train`` first):
 
 * ``adaptive=True``: the noise std sigma_l of every channel is estimated from the
   observation itself as the ``kalman`` engine estimates it (median absolute second
-  difference, :func:`engines.smoothing.measurement_variance`; outliers and gaps do not
+  difference, :func:`workbench.engine.smoothing.measurement_variance`; outliers and gaps do not
   bias it). Samples are weighted by 1 / (sigma_l^2 + noise_floor^2) and
   the Welsch scale is ``welsch_p_sigma`` sqrt(sigma_l^2 + noise_floor^2). Clean data
   (gaps only) are then kept almost exactly and the gaps filled from the bases; heavy

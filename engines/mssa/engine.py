@@ -18,8 +18,8 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 
-from ..identity import bridge_gaps
-from ..smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
+from workbench.engine.signal import bridge_gaps
+from workbench.engine.smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -137,7 +137,7 @@ class MSSA(Engine):
         short_lever_cm: float = 5.0
         #: space "positions": joints aimed at one descendant within this many cm keep
         #: their smoothed observed angles where the noise is in the angles (as in
-        #: ``cae``; :func:`engines.smoothing.ik_reference`); 0: none
+        #: ``cae``; :func:`workbench.engine.smoothing.ik_reference`); 0: none
         angle_lever_cm: float = 13.5
 
         def __post_init__(self) -> None:

@@ -42,7 +42,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy.linalg import cho_solve_banded, cholesky_banded
 from scipy.ndimage import median_filter
 
-from ..smoothing import second_difference_band
+from workbench.engine.smoothing import second_difference_band
 
 #: IRLS re-weightings per motion update (each lowers J; the outer loop continues anyway)
 IRLS_STEPS = 3

@@ -311,7 +311,7 @@ def test_kalman_noise_estimate_for_known_white_noise():
     rng = np.random.default_rng(5)
     t = np.arange(2000) / 120.0
     smooth = 30.0 * np.sin(2 * np.pi * 0.7 * t)[:, None] + 10.0 * np.sin(2 * np.pi * 1.9 * t[:, None] + np.arange(4))
-    from engines.smoothing import estimate_noise
+    from workbench.engine.smoothing import estimate_noise
 
     for std in (0.5, 2.0, 5.0):
         Y = smooth + rng.normal(size=smooth.shape) * std
@@ -322,7 +322,7 @@ def test_kalman_noise_estimate_for_known_white_noise():
 def test_mean_square_noise_estimate_for_heavy_tailed_noise():
     """Noise with heavy tails (here Laplace): the median-based estimate misses much of
     the variance, the mean-square one does not; both hold for Gaussian noise."""
-    from engines.smoothing import measurement_variance
+    from workbench.engine.smoothing import measurement_variance
 
     rng = np.random.default_rng(6)
     t = np.arange(4000) / 120.0
@@ -343,8 +343,8 @@ def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter
     """The feet's observed angles tell their direction better than the toe's observed
     position does under angle noise (the toe carries the noise of the whole leg), not
     under position noise, and not when the angles have outliers."""
-    from engines.identity import bridge_gaps
-    from engines.smoothing import angles_are_quieter
+    from workbench.engine.signal import bridge_gaps
+    from workbench.engine.smoothing import angles_are_quieter
     from workbench.corruption import parse_corruption
 
     sk = clip.skeleton
@@ -362,8 +362,8 @@ def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter
 def test_angles_bridge_holes_unless_the_noise_is_in_the_positions_or_has_outliers(corruption, bridge, clip):
     """A take's holes are left to the angles' smoother when it is clean, when its noise
     is in the angles or small, not under position noise of 1 cm, nor with outliers."""
-    from engines.identity import bridge_gaps
-    from engines.smoothing import angles_bridge_holes
+    from workbench.engine.signal import bridge_gaps
+    from workbench.engine.smoothing import angles_bridge_holes
     from workbench.corruption import parse_corruption
 
     obs = parse_corruption(corruption).apply(clip, seed=0)
@@ -376,8 +376,8 @@ def test_angles_bridge_holes_unless_the_noise_is_in_the_positions_or_has_outlier
                                                 ("angular:0.9", False), ("spatial:1", False), ("outliers:0.01", False)])
 def test_angles_are_quiet_below_half_a_centimetre_of_noise(corruption, quiet, clip):
     """Quiet: less than 0.5 cm of angle noise, outliers included, as the descendants see it."""
-    from engines.identity import bridge_gaps
-    from engines.smoothing import angles_are_quiet
+    from workbench.engine.signal import bridge_gaps
+    from workbench.engine.smoothing import angles_are_quiet
     from workbench.corruption import parse_corruption
 
     obs = parse_corruption(corruption).apply(clip, seed=0)
@@ -408,7 +408,7 @@ def test_the_smoother_bridges_a_hole_nearer_a_smooth_truth_than_a_line():
     """smooth_and_fill's path across a hole of a clean channel (what cae bridges its holes
     with) is a spline through the samples around it: 10x nearer a smooth truth than the
     line across, and the observed samples stay (a clean channel is interpolated)."""
-    from engines.smoothing import smooth_and_fill
+    from workbench.engine.smoothing import smooth_and_fill
 
     t = np.arange(240.0)
     truth = np.column_stack([np.sin(t / 12.0), np.cos(t / 20.0)])
@@ -422,7 +422,7 @@ def test_the_smoother_bridges_a_hole_nearer_a_smooth_truth_than_a_line():
 
 
 def test_cv_smoother_equals_rts_recursion():
-    from engines.smoothing import cv_smooth
+    from workbench.engine.smoothing import cv_smooth
 
     rng = np.random.default_rng(1)
     F, D = 120, 5

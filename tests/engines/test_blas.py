@@ -1,9 +1,9 @@
-"""numpy's BLAS runs on one thread while the torch engines clean (engines.blas)."""
+"""numpy's BLAS runs on one thread while the torch engines clean (workbench.engine.threads)."""
 
 import numpy as np
 from threadpoolctl import threadpool_info
 
-from engines.blas import one_blas_thread
+from workbench.engine.threads import one_blas_thread
 from workbench.corruption import parse_corruption
 from workbench.registry import create
 

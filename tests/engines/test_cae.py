@@ -18,7 +18,7 @@ from workbench.engine import EngineError, NotFittedError
 from engines.cae import CAE, Holden
 from engines.cae.representation import (Layout, decode, encode, heading, image_mask, integrate,
                                         mirror_rows, pad_time, reverse_time)
-from engines.identity import bridge_gaps
+from workbench.engine.signal import bridge_gaps
 
 torch.set_num_threads(1)
 NAMES = ("cae", "cae-vanilla", "holden")
@@ -375,7 +375,7 @@ def test_short_levers_keep_their_observed_angles(test_clip):
     linearly across a hole (IK would aim them at finger positions a few mm off); with
     the anchor the observed angles are smoothed first (their noise is the observation's)."""
     from workbench.core.kinematics import short_lever_joints
-    from engines.smoothing import smooth_observed
+    from workbench.engine.smoothing import smooth_observed
 
     sk = test_clip.skeleton
     short = short_lever_joints(sk, 5.0)

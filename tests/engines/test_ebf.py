@@ -293,7 +293,7 @@ def test_tiny_fit_learns_and_round_trips_through_save_and_load(tiny, tmp_path):
 def test_two_thread_fits_are_repeatable_and_restore_the_thread_count(tiny, monkeypatch):
     """Two threads, as ``workbench train`` uses here. (Without torch's deterministic
     algorithms, full-size training differed from run to run; at this size it did not,
-    so :func:`engines.torch_support.reproducible_training` has its own test.)"""
+    so :func:`workbench.engine.torch_support.reproducible_training` has its own test.)"""
     monkeypatch.setenv("OMP_NUM_THREADS", "2")
     params = EBF.Params(epochs=1, lstm_units=16, batch_windows=64, seed=3)
     threads = torch.get_num_threads()

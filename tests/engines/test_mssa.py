@@ -144,7 +144,7 @@ def test_objective_never_increases(fitted, walk):
 def test_smoothness_term_is_the_kalman_smoothers_prior(fitted, walk):
     # without the bases term, least squares plus the smoothness term is the constant-
     # velocity RTS smoother of engines.kalman with q = r / lambda
-    from engines.smoothing import cv_smooth
+    from workbench.engine.smoothing import cv_smooth
 
     model = fitted.models_["angles"]
     X = walk.channels[:200, model.columns]
@@ -219,7 +219,7 @@ def test_position_mode_returns_a_motion_with_the_skeletons_bone_lengths(fitted, 
 def test_position_mode_keeps_short_levers_at_their_smoothed_observed_angles(fitted, walk):
     # the hands and finger bases are not aimed from filtered positions a few mm off: they
     # keep their observed angles through the kalman smoother, as in cae
-    from engines.smoothing import smooth_observed
+    from workbench.engine.smoothing import smooth_observed
     from workbench.core.kinematics import short_lever_joints
 
     obs, _, _ = _outlier_case(walk, fitted, rate=0.0)
@@ -238,7 +238,7 @@ def test_position_mode_keeps_short_levers_at_their_smoothed_observed_angles(fitt
 
 def test_position_mode_keeps_the_feet_at_their_smoothed_angles_under_angle_noise(fitted, walk):
     # as in cae: aimed at a toe whose position carries the whole leg's noise, a foot
-    # turns far more than its own smoothed angles do (engines.smoothing.ik_reference)
+    # turns far more than its own smoothed angles do (workbench.engine.smoothing.ik_reference)
     feet = [walk.skeleton.index(n) for n in ("LeftFoot", "RightFoot")]
     obs = parse_corruption("angular:0.5").apply(walk, seed=0)
 

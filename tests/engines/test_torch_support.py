@@ -6,7 +6,7 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from engines.torch_support import default_threads, reproducible_training, torch_threads  # noqa: E402
+from workbench.engine.torch_support import default_threads, reproducible_training, torch_threads  # noqa: E402
 
 
 def test_torch_threads_sets_and_restores_the_count():

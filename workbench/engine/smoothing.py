@@ -1,6 +1,6 @@
 """The constant-velocity smoother of a bank of channels and the estimator of its noise
-variances: the ``kalman`` engine's numerics, shared with ``mssa`` (its smoothness prior)
-and the motion-image autoencoders (their anchor to the observation); and, built on
+variances: the numerics of the ``kalman`` engine, of ``mssa``'s smoothness prior and of
+the motion-image autoencoders' anchor to the observation; and, built on
 them, what IK keeps of an observation for the engines that clean joint positions
 (:func:`ik_reference`: ``cae`` and its baselines, ``mssa``'s position mode) and which
 holes the smoother of the angles bridges best (:func:`angles_bridge_holes`: ``cae``).
@@ -38,9 +38,9 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.linalg import solveh_banded
 
-from workbench.core.channels import interpolate_gaps
-from workbench.core.kinematics import short_lever_joints
-from workbench.core.motion import angle_joints, angle_slice, joint_angle_columns
+from ..core.channels import interpolate_gaps
+from ..core.kinematics import short_lever_joints
+from ..core.motion import angle_joints, angle_slice, joint_angle_columns
 
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10

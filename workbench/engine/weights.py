@@ -17,8 +17,8 @@ from typing import Mapping
 
 import numpy as np
 
-from .engine import EngineError
-from .io.atomic import atomic_path, atomic_write_text
+from ..io.atomic import atomic_path, atomic_write_text
+from .base import EngineError
 
 WEIGHTS_FILE = "weights.npz"
 MANIFEST_FILE = "manifest.json"
@@ -35,7 +35,7 @@ def sha256_file(path: Path) -> str:
 def code_commit() -> str | None:
     """The git commit of this checkout, with "+dirty" when tracked files differ from it,
     so a manifest says which code trained its weights; None outside a git checkout."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
 
     def git(*args: str) -> str:
         return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True,
@@ -51,7 +51,7 @@ def code_commit() -> str | None:
 
 def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> Path:
     """Write arrays and manifest atomically into ``folder``; returns the manifest path."""
-    from . import __version__
+    from .. import __version__
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,6 @@
 """Shared machinery for the engines built on PyTorch (CPU build): seeding, thread
 count, converting a module's state to plain arrays and back (so weights are stored by
-:mod:`workbench.weights` as a checksummed ``.npz`` and never unpickled), and a training
+:mod:`workbench.engine.weights` as a checksummed ``.npz`` and never unpickled), and a training
 progress bar.
 
 Import this module only inside ``fit``/``clean``/``load_state_arrays`` so that listing
@@ -18,7 +18,7 @@ from typing import Iterable, Iterator, Mapping
 import numpy as np
 import torch
 
-from workbench.engine import EngineError
+from .base import EngineError
 
 #: serialise heavy torch runs across processes on this 2-core machine (see PERFORMANCE.md:
 #: two 2-thread torch processes at once are each ~20x slower)

@@ -21,8 +21,8 @@ from typing import ClassVar, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from .core.motion import Motion, Observation
-from .core.skeleton import Skeleton
+from ..core.motion import Motion, Observation
+from ..core.skeleton import Skeleton
 
 TASKS = frozenset({"denoise", "fill"})
 #: the spec option of trainable engines that names a folder of trained weights
