@@ -99,8 +99,11 @@ def test_weights_bring_their_architecture_unless_the_spec_asks_for_another():
     assert registry.create(f"ebf:weights={bias}").params.bias is True  # taken from the weights
     with pytest.raises(EngineError, match=r"trained with \{'lstm_units': 64\}, not \{'lstm_units': 32\}"):
         registry.create(f"ebf:lstm_units=32,weights={bias}")
+    cae = registry.create("cae").default_weights_dir()
     with pytest.raises(EngineError, match=r"trained with \{'base_width': 16\}, not \{'base_width': 8\}"):
-        registry.create("cae:base_width=8")  # was: the committed 16-wide network, silently
+        registry.create(f"cae:base_width=8,weights={cae}")
+    narrow = registry.create("cae:base_width=8")  # another variant: its own weights, none committed
+    assert narrow.variant == "cae-base_width8" and narrow.skeleton_signature_ is None  # was: the 16-wide, silently
     assert registry.create("cae:epochs=3").spec == "cae"  # training settings come with the weights
 
 
@@ -138,3 +141,34 @@ def test_observation_nan_counts_as_missing(walk):
     obs = Observation(walk.with_channels(X))
     assert not obs.observed[3, 7] and obs.observed.sum() == obs.observed.size - 1
     assert np.isnan(obs.motion.angles_deg[3, 7]).all()
+
+
+def test_every_trained_engine_has_its_own_weights_folder_and_its_committed_weights_load():
+    folders = {}
+    for name in registry.available():
+        engine = registry.create(name)
+        if not engine.info.trainable:
+            continue
+        assert engine.skeleton_signature_ is not None, f"{name}: the committed weights did not load"
+        folder = engine.default_weights_dir()
+        assert folder.parent.name == "weights" and folder.name == engine.variant == name
+        folders[name] = folder
+    assert len(set(folders.values())) == len(folders) == 9
+
+
+def test_train_writes_its_variant_s_folder_with_a_manifest_of_what_it_used(tmp_path, monkeypatch, capsys):
+    import json
+
+    from workbench.cli import main
+    from workbench.data import dataset_terms
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "kalman-learned"]) == 0
+    manifest = json.loads((tmp_path / "runs" / "kalman-learned" / "manifest.json").read_text())
+    assert manifest["format_version"] == 2 and manifest["variant"] == "kalman-learned"
+    training = manifest["training"]
+    assert training["datasets"] == [{"name": "cmu", "terms": dataset_terms("cmu")}]
+    assert len(training["clips"]) == 36 and all(c.startswith("cmu/") for c in training["clips"])
+    assert manifest["test_scores"]["split"] == "test" and manifest["test_scores"]["rms_angle_deg"] > 0
+    assert "note: training on the cmu training split" in capsys.readouterr().err
+

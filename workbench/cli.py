@@ -285,8 +285,8 @@ COMMITTED_WEIGHTS_DATASET = "cmu"
 def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, find_data_root, select
-    from .engine import WEIGHTS_OPTION, EngineError
-    from .evaluate import reset_peak_resident, resident_mb, run_benchmark
+    from .engine import WEIGHTS_OPTION
+    from .training import train_engine
 
     spec = args.engine
     if args.epochs is not None:
@@ -313,34 +313,22 @@ def cmd_train(args) -> int:
     used = [(c, m) for c, m in loaded if m.skeleton.signature() == layout]
     if len(used) < len(loaded):
         print(f"note: training on the {len(used)} clips of the first clip's skeleton only", file=sys.stderr)
-    motions = engine.training_motions([m for _, m in used])  # the checks fit makes, before the time it takes
-    print(f"training {engine.spec} on {len(motions)} clips ({sum(m.n_frames for m in motions):,} frames)",
+    engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
+    print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)",
           file=sys.stderr)
-    resident = reset_peak_resident()
-    t0 = time.perf_counter()
+    out = Path(args.out or Path("runs") / engine.variant)
+    test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
-        engine.fit(motions)
+        run = train_engine(engine, [(c.id, m) for c, m in used], out, test=test,
+                           datasets={c.id: c.dataset for c, _ in used})
     except KeyboardInterrupt:
         raise UserError("training interrupted; nothing was saved") from None
-    minutes = (time.perf_counter() - t0) / 60
-    peak_mb = resident_mb("VmHWM") - resident  # NaN off Linux
-    test = [(c.id, c.load()) for c in select(clips, "test")]
-    validation = {}
-    if test:
-        corruption = "angular:0.5" if "denoise" in engine.info.tasks else "gaps:0.01"
-        summary = run_benchmark([engine], corruption, test, seeds=[0]).summary[engine.spec]
-        validation = {"corruption": corruption, "split": "test", "seeds": [0], **summary}
-        print(f"test split, {corruption}: " + ", ".join(f"{k} {v:.3f}" for k, v in summary.items()), file=sys.stderr)
-    out = Path(args.out or Path("runs") / engine.default_weights_dir().name)
-    try:
-        training = {"clips": [c.id for c, _ in used], "split": "train", "minutes": round(minutes, 2)}
-        if not np.isnan(peak_mb):
-            training["peak_mb"] = round(peak_mb)
-        manifest = engine.save(out, {"training": training, "validation": validation})
-    except EngineError as err:
-        raise UserError(str(err)) from None
-    memory = "" if np.isnan(peak_mb) else f" using {peak_mb:,.0f} MB more memory at most"
-    print(f"trained in {minutes:.1f} min{memory}; saved {manifest}; clean with it as "
+    if run.test_scores:
+        scores = {k: v for k, v in run.test_scores.items() if isinstance(v, float)}
+        print(f"test split, {run.test_scores['corruption']}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()),
+              file=sys.stderr)
+    memory = "" if np.isnan(run.peak_mb) else f" using {run.peak_mb:,.0f} MB more memory at most"
+    print(f"trained in {run.minutes:.1f} min{memory}; saved {run.manifest}; clean with it as "
           f"--engine '{engine.spec}{',' if ':' in engine.spec else ':'}{WEIGHTS_OPTION}={out}'")
     if args.promote:
         import shutil

@@ -13,9 +13,9 @@ network differs (:mod:`.networks`). Committed weights live in ``weights/<name>/`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from workbench.engine import ARCHITECTURE, EngineInfo
+from workbench.engine import EngineInfo, trained, training
 
 from .engine import ConvAutoencoderEngine, TrainingParams
 
@@ -28,8 +28,8 @@ class ImageParams(TrainingParams):
     """Encoder widths: ``base_width`` channels in the first unit, doubling per unit up
     to ``top_width``."""
 
-    base_width: int = field(default=16, metadata=ARCHITECTURE)
-    top_width: int = field(default=192, metadata=ARCHITECTURE)
+    base_width: int = trained(16)
+    top_width: int = trained(192)
 
 
 @dataclass(frozen=True)
@@ -42,19 +42,19 @@ class CAEParams(ImageParams):
     two pose copies at 10 degrees and to 5.6 cm with four at 15; the 60-frame gap error
     from 9.2 to 8.7, 7.2 and 6.8 cm."""
 
-    time_scale_pct: float = 50.0
-    body_scale_pct: float = 5.0
-    input_noise: float = 0.1
-    pose_copies: int = 4
-    pose_jitter_deg: float = 15.0
+    time_scale_pct: float = training(50.0)
+    body_scale_pct: float = training(5.0)
+    input_noise: float = training(0.1)
+    pose_copies: int = training(4)
+    pose_jitter_deg: float = training(15.0)
 
 
 @dataclass(frozen=True)
 class HoldenParams(TrainingParams):
     """``hidden`` feature channels of the temporal convolution, ``kernel_frames`` wide (odd)."""
 
-    hidden: int = field(default=256, metadata=ARCHITECTURE)
-    kernel_frames: int = field(default=25, metadata=ARCHITECTURE)
+    hidden: int = trained(256)
+    kernel_frames: int = trained(25)
 
 
 class CAE(ConvAutoencoderEngine):

@@ -163,7 +163,6 @@ stays the network's output.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -171,19 +170,15 @@ import numpy as np
 from workbench.core.channels import hole_length, interpolate_gaps
 from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
-from workbench.engine import CleanResult, Engine, EngineError
+from workbench.engine import CleanResult, Engine, EngineError, trained, training
 
+from workbench.engine.signal import bridge_gaps, normalized_gaussian, rewrap_angles
 from workbench.engine.threads import one_blas_thread
-from workbench.engine.signal import normalized_gaussian
-from workbench.engine.signal import bridge_gaps, rewrap_angles
 from workbench.engine.smoothing import (angles_bridge_holes, cv_smooth, ik_reference, measurement_variance, smooth_and_fill,
                          smoothing_ratio)
 from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
                              pad_time, reverse_time, trajectory, turn_y, wrap)
 
-#: parameters that only change how a trained network is used (kept when loading weights)
-INFERENCE_PARAMS = ("keep_observed", "anchor", "short_lever_cm", "angle_lever_cm", "views", "short_hole_frames",
-                    "partial_hole_frames", "hole_blend_frames", "output_sigma_frames")
 #: most image columns (views x padded frames) per network call: per column, bigger calls
 #: are slower on these CPUs (2-core AVX2 EPYC, cae: 27 us up to 14k columns, 34-43 us
 #: from 21k; the 3 views of a 7,200-frame take take 931 ms in one call, 600 in three)
@@ -236,23 +231,23 @@ class TrainingParams:
     ``output_sigma_frames``: the network's completion is smoothed over time by a
     Gaussian of this std in frames before it is used (0: none; the module docstring)."""
 
-    epochs: int = 120
-    frames_per_epoch: int = 100_000
-    window_frames: int = 256
-    batch_size: int = 16
-    learning_rate: float = 1e-3
-    ema_decay: float = 0.998
-    curriculum_epochs: int = 8
-    gap_sigma_frames: float = 20.0
-    mirror: bool = True
-    time_scale_pct: float = 10.0
-    body_scale_pct: float = 0.0
-    input_noise: float = 0.0
-    pose_copies: int = 0
-    pose_jitter_deg: float = 0.0
-    input_fill: str = "linear"
-    sampling: str = "clips"
-    seed: int = 0
+    epochs: int = training(120)
+    frames_per_epoch: int = training(100_000)
+    window_frames: int = training(256)
+    batch_size: int = training(16)
+    learning_rate: float = training(1e-3)
+    ema_decay: float = training(0.998)
+    curriculum_epochs: int = training(8)
+    gap_sigma_frames: float = training(20.0)
+    mirror: bool = training(True)
+    time_scale_pct: float = training(10.0)
+    body_scale_pct: float = training(0.0)
+    input_noise: float = training(0.0)
+    pose_copies: int = training(0)
+    pose_jitter_deg: float = training(0.0)
+    input_fill: str = trained("linear")
+    sampling: str = training("clips")
+    seed: int = training(0)
     bf16: bool = True
     keep_observed: bool = False
     anchor: bool = True
@@ -292,10 +287,6 @@ class ConvAutoencoderEngine(Engine):
     def build_network(self, n_rows: int):
         """A fresh network for images of ``n_rows`` rows (torch module)."""
         raise NotImplementedError
-
-    def default_weights_dir(self) -> Path:
-        """``engines/cae/weights/<engine name>``."""
-        return Path(__file__).resolve().parent / "weights" / self.info.name
 
     # -- training -------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "ConvAutoencoderEngine":
@@ -352,11 +343,9 @@ class ConvAutoencoderEngine(Engine):
         self.skeleton_signature_ = skeleton.signature()
 
     # -- fitted state ---------------------------------------------------------------
-    def save(self, folder: str | Path, extra_manifest: Mapping | None = None) -> Path:
-        """Save as :meth:`Engine.save`, with the loss of every epoch in the manifest."""
-        self.require_fitted()
-        log = [round(float(x), 5) for x in self.loss_log_]
-        return super().save(folder, {**(extra_manifest or {}), "loss_per_epoch": log})
+    def training_record(self) -> dict[str, list[float]]:
+        """The loss of every epoch."""
+        return {"loss_per_epoch": [round(float(x), 5) for x in self.loss_log_]}
 
     def state_arrays(self) -> dict[str, np.ndarray]:
         from workbench.engine.torch_support import module_arrays
@@ -372,17 +361,6 @@ class ConvAutoencoderEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from workbench.engine.torch_support import load_module_arrays
 
-        # older weights saw zeroed holes and ended on their last step's weights, and
-        # recorded the view averaging of their day as two switches (now ``views``)
-        self.trained_architecture(manifest)  # widths asked for in the spec must be the weights'
-        saved = {"input_fill": "zero", "ema_decay": 0.0, **manifest.get("params", {})}
-        for legacy in ("mirror_average", "reverse_average"):
-            saved.pop(legacy, None)
-        saved.update({k: getattr(self.params, k) for k in INFERENCE_PARAMS})
-        try:
-            self.params = self.Params(**saved)
-        except TypeError as err:
-            raise EngineError(f"engine {self.info.name!r}: weights saved with unknown parameters ({err})") from None
         self.layout_ = Layout(tuple(int(j) for j in arrays["layout.joints"]),
                               tuple(int(j) for j in arrays["layout.source"]),
                               tuple(int(j) for j in arrays["layout.parents"]))

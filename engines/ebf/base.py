@@ -8,16 +8,14 @@ lets the streaming API reproduce offline results exactly.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, ClassVar, Mapping, Sequence
 
 import numpy as np
 
 from workbench.core.channels import retime, unwrap_deg
 from workbench.core.motion import Motion, Observation
-from workbench.engine import Engine, architecture
+from workbench.engine import Engine, training
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
@@ -33,19 +31,19 @@ class TrainingParams:
     """Training parameters common to the four engines (they do not change the network)."""
 
     #: passes over the training data; each pass draws fresh noise on every clip
-    epochs: int = 20
+    epochs: int = training(20)
     #: seeds network initialisation, noise and sampling
-    seed: int = 0
+    seed: int = training(0)
     #: Adam's initial learning rate (cosine-decayed to 2 % of it)
-    learning_rate: float = 2e-3
+    learning_rate: float = training(2e-3)
     #: windows per optimisation step
-    batch_windows: int = 256
+    batch_windows: int = training(256)
     #: dropout probability on the B-LSTM's inputs during training (paper: 0.5)
-    dropout: float = 0.5
+    dropout: float = training(0.5)
     #: augmentation: each training copy is played at a speed drawn log-uniformly
     #: between 1 / (1 + p/100) and 1 + p/100 (our train subjects move more slowly,
     #: relative to the noise, than the test subjects; see the issue note)
-    time_scale_pct: float = 50.0
+    time_scale_pct: float = training(50.0)
 
     def __post_init__(self) -> None:
         if self.epochs < 1 or self.batch_windows < 1 or not self.learning_rate > 0 or self.seed < 0:
@@ -79,21 +77,6 @@ class WindowEngine(Engine):
     loss_history_: np.ndarray | None = None
 
     # -- weights --------------------------------------------------------------------
-    @property
-    def variant(self) -> str:
-        """Name of this network variant: the engine's name plus every architecture
-        parameter that differs from its default (``ebf-bias``, ``ebf-lstm_units96``)."""
-        default = self.Params()
-        parts = [self.info.name]
-        for name, value in architecture(self.params).items():
-            if value != getattr(default, name):
-                parts.append(name if value is True else f"{name}{value}")
-        return "-".join(parts)
-
-    def default_weights_dir(self) -> Path:
-        """``engines/ebf/weights/<variant>/``: each network variant has its own weights."""
-        return Path(__file__).resolve().parent / "weights" / self.variant
-
     def state_arrays(self) -> dict[str, np.ndarray]:
         from workbench.engine.torch_support import module_arrays
 
@@ -103,7 +86,6 @@ class WindowEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from workbench.engine.torch_support import load_module_arrays
 
-        self.params = dataclasses.replace(self.params, **self.trained_architecture(manifest))
         self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float))
         net = self._build_net(self.norm_.mean.size - 3)
         load_module_arrays(net, arrays, "net.")

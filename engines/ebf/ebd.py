@@ -42,7 +42,7 @@ Use ``ebd>ebf`` to fill and then denoise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
@@ -50,7 +50,7 @@ import numpy as np
 from workbench.core.channels import gap_distance, hole_length
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
-from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
+from workbench.engine import CleanResult, EngineInfo, trained, training
 
 from workbench.engine.threads import one_blas_thread
 from workbench.engine.signal import rewrap_angles
@@ -78,9 +78,9 @@ class EBD(WindowEngine):
 
     @dataclass(frozen=True)
     class Params(TrainingParams):
-        epochs: int = 45
+        epochs: int = training(45)
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 32)
-        lstm_units: int = field(default=32, metadata=ARCHITECTURE)
+        lstm_units: int = trained(32)
         #: frames over which the network's fill takes over from the linear one, from
         #: each gap edge (0: the network's fill everywhere); see the module docstring
         blend_frames: float = 40.0

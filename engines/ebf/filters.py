@@ -38,14 +38,14 @@ filtered and clean angles, averaged over frames; Adam.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
-from workbench.engine import ARCHITECTURE, CleanResult, EngineInfo
+from workbench.engine import CleanResult, EngineInfo, trained, training
 
 from workbench.engine.threads import one_blas_thread
 from workbench.engine.signal import rewrap_angles
@@ -187,13 +187,13 @@ class EBF(FilterEngine):
     @dataclass(frozen=True)
     class Params(FilterParams):
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 126)
-        lstm_units: int = field(default=64, metadata=ARCHITECTURE)
+        lstm_units: int = trained(64)
         #: also predict and subtract a per-channel bias (for biased noise)
-        bias: bool = field(default=False, metadata=ARCHITECTURE)
+        bias: bool = trained(False)
         #: free filter shapes (31 softmax weights per channel) instead of Gaussians
-        free: bool = field(default=False, metadata=ARCHITECTURE)
+        free: bool = trained(False)
         #: also trained on joint-position noise (for marker-based takes; our addition)
-        positions: bool = field(default=False, metadata=ARCHITECTURE)
+        positions: bool = trained(False)
 
         def __post_init__(self) -> None:
             super().__post_init__()
@@ -217,7 +217,7 @@ class BF(FilterEngine):
     @dataclass(frozen=True)
     class Params(FilterParams):
         #: LSTM units per direction in each of the two B-LSTM layers
-        lstm_units: int = field(default=64, metadata=ARCHITECTURE)
+        lstm_units: int = trained(64)
 
     info = EngineInfo(
         name="bf",
@@ -235,7 +235,7 @@ class NN(FilterEngine):
 
     @dataclass(frozen=True)
     class Params(FilterParams):
-        epochs: int = 45
+        epochs: int = training(45)
 
     info = EngineInfo(
         name="nn",

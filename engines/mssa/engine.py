@@ -4,7 +4,6 @@ bases (Lou and Chai 2010). See the package docstring for the design."""
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -16,7 +15,7 @@ from workbench.core.channels import rewrap_deg, unwrap_deg
 from workbench.core.kinematics import inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.skeleton import Skeleton
-from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
+from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, trained
 
 from workbench.engine.signal import bridge_gaps
 from workbench.engine.smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
@@ -30,8 +29,6 @@ CONSTANT_STD = 1e-6
 #: normalisation floors: angles in degrees, positions in centimetres
 SCALE_FLOOR_DEG = 1.0
 SCALE_FLOOR_CM = 1.0
-#: parameters the fitted bases depend on (weights fitted with others are refused)
-FIT_PARAMS = ("window_frames", "energy_kept")
 
 
 @dataclass(frozen=True)
@@ -88,9 +85,9 @@ class MSSA(Engine):
         #: joint positions and recover angles by inverse kinematics (their marker mode)
         space: str = "angles"
         #: M, frames per window (the paper's 20)
-        window_frames: int = 20
+        window_frames: int = trained(20)
         #: share of the training energy the kept bases hold; sets K (the paper's 0.99)
-        energy_kept: float = 0.999
+        energy_kept: float = trained(0.999)
         #: Welsch scale p in normalised units (the channel's within-take training spread)
         welsch_p_std: float = 3.0
         #: lambda, weight of the bases term against the data term (the paper's 0.1)
@@ -276,15 +273,7 @@ class MSSA(Engine):
         return {f"{space}_{f.name}": getattr(model, f.name)
                 for space, model in self.models_.items() for f in dataclasses.fields(SpaceModel)}
 
-    def _fit_params_match(self, manifest: Mapping) -> bool:
-        saved = manifest.get("params", {})
-        return all(saved.get(k) == getattr(self.params, k) for k in FIT_PARAMS)
-
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
-        if not self._fit_params_match(manifest):
-            saved = {k: manifest.get("params", {}).get(k) for k in FIT_PARAMS}
-            raise EngineError(f"mssa: these bases were fitted with {saved}; this engine asks for "
-                              f"{ {k: getattr(self.params, k) for k in FIT_PARAMS} }; retrain it")
         fields = [f.name for f in dataclasses.fields(SpaceModel)]
         keys = {space: {name: f"{space}_{name}" for name in fields} for space in SPACES}
         missing = sorted(k for names in keys.values() for k in names.values() if k not in arrays)
@@ -293,12 +282,3 @@ class MSSA(Engine):
                               "retrain them")
         self.models_ = {space: SpaceModel(**{name: np.asarray(arrays[key]) for name, key in names.items()})
                         for space, names in keys.items()}
-
-    def load_pretrained(self) -> "MSSA":
-        """As the base class, but committed bases fitted with another window or energy
-        share leave the engine unfitted (those settings need their own training)."""
-        path = self.default_weights_dir() / "manifest.json"
-        if (self.weights_folder is None and path.exists()
-                and not self._fit_params_match(json.loads(path.read_text(encoding="utf-8")))):
-            return self
-        return super().load_pretrained()

@@ -506,4 +506,4 @@ def test_learned_kalman_save_load_round_trip(learned, clip, tmp_path):
 
 def test_learned_kalman_weights_live_in_the_package():
     engine = create("kalman-learned", pretrained=False)
-    assert engine.default_weights_dir().parts[-3:] == ("engines", "kalman", "weights")
+    assert engine.default_weights_dir().parts[-4:] == ("engines", "kalman", "weights", "kalman-learned")

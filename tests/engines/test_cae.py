@@ -315,30 +315,29 @@ def test_network_input_bridges_unknown_entries_and_clips_are_drawn_alike(walk):
         np.testing.assert_allclose(sampler.weights, weights)
 
 
-def test_weights_saved_before_input_fill_and_ema_load_as_trained(tiny_fit, tmp_path):
+def test_loaded_weights_bring_their_trained_and_training_parameters_not_the_inference_ones(tiny_fit, tmp_path):
+    """The one rule of Engine.load: the weights' trained and training parameters, the
+    spec's inference ones; a parameter newer than the weights at its default; one the
+    engine no longer has, or a manifest of an older format, refused by name."""
     import json
 
     engine, _ = tiny_fit
     manifest = engine.save(tmp_path)
+    loaded = CAE(CAE.Params(views=4, hole_blend_frames=0)).load(tmp_path).params
+    assert (loaded.views, loaded.hole_blend_frames) == (4, 0)  # inference: as asked
+    assert (loaded.epochs, loaded.window_frames) == (1, 64)  # training: how these weights were made
     data = json.loads(manifest.read_text())
-    del data["params"]["input_fill"], data["params"]["ema_decay"]
+    del data["params"]["input_fill"]  # saved before the parameter existed: at its default
     manifest.write_text(json.dumps(data))
-    loaded = CAE().load(tmp_path).params
-    assert loaded.input_fill == "zero" and loaded.ema_decay == 0.0
-
-
-def test_weights_saved_with_the_view_switches_load_with_the_views_asked_for(tiny_fit, tmp_path):
-    """Manifests written before ``views`` recorded ``mirror_average`` and
-    ``reverse_average``; they load, and the engine uses the views it was created with."""
-    import json
-
-    engine, _ = tiny_fit
-    manifest = engine.save(tmp_path)
-    data = json.loads(manifest.read_text())
-    del data["params"]["views"]
-    data["params"].update(mirror_average=True, reverse_average=False)
+    assert CAE().load(tmp_path).params.input_fill == CAE.Params().input_fill
+    data["params"]["mirror_average"] = True  # a parameter the engine no longer has
     manifest.write_text(json.dumps(data))
-    assert CAE(CAE.Params(views=4)).load(tmp_path).params.views == 4
+    with pytest.raises(EngineError, match=r"parameters engine 'cae' does not have \(mirror_average\)"):
+        CAE().load(tmp_path)
+    del data["format_version"]
+    manifest.write_text(json.dumps(data))
+    with pytest.raises(EngineError, match="weights of manifest format 1, and this workbench reads format 2"):
+        CAE().load(tmp_path)
     with pytest.raises(ValueError, match="views"):
         CAE.Params(views=5)
 

@@ -272,7 +272,7 @@ def test_save_load_round_trip_gives_identical_output(fitted, walk, tmp_path):
         b = with_params(loaded, space=space).clean(obs)
         assert np.array_equal(a.motion.channels, b.motion.channels), space
         assert np.array_equal(a.diagnostics["robust_weight"], b.diagnostics["robust_weight"]), space
-    with pytest.raises(EngineError, match="retrain"):
+    with pytest.raises(EngineError, match=r"trained with \{'window_frames': 20\}, not \{'window_frames': 10\}"):
         MSSA(MSSA.Params(window_frames=10)).load(tmp_path)
 
 

@@ -32,6 +32,20 @@ from ..io import MOTION_SUFFIXES, read_motion
 from .roots import files_under, find_data_root
 
 SPLITS_DIR = Path(__file__).resolve().parent / "splits"
+#: the terms of the team's data sets (their READMEs); weights trained on one inherit them
+DATASET_TERMS = {
+    "cmu": "CMU Graphics Lab Motion Capture Database terms: free for research and commercial use, the raw data "
+           "not for resale; credit mocap.cs.cmu.edu (NSF EIA-0196217)",
+    "cmu-daz": "CMU Graphics Lab Motion Capture Database terms (a conversion of CMU takes): free for research and "
+               "commercial use, the raw data not for resale; credit mocap.cs.cmu.edu (NSF EIA-0196217)",
+    "bandai": "CC BY-NC 4.0, non-commercial: Bandai-Namco-Research-Motiondataset, Bandai Namco Research Inc.",
+}
+
+
+def dataset_terms(dataset: str) -> str:
+    """The licence of a data set by name; for one the team does not know, a line saying
+    so (a user's own data: its terms are the user's)."""
+    return DATASET_TERMS.get(dataset, "unknown: the terms of this data set are its owner's")
 #: the splits a clip can be in, in listing order ("" for a dataset without a split file)
 SPLITS = ("train", "validation", "test")
 

@@ -14,8 +14,8 @@ the toolkit they share. Engines import from here and from the rest of the public
   ``fit`` or ``clean`` only).
 """
 
-from .base import (ARCHITECTURE, SPACES, TASKS, WEIGHTS_OPTION, CleanResult, Engine, EngineError, EngineInfo,
-                   NotFittedError, Pipeline, architecture)
+from .base import (INFERENCE, SPACES, TASKS, TRAINED, TRAINING, WEIGHTS_OPTION, CleanResult, Engine, EngineError,
+                   EngineInfo, NotFittedError, Pipeline, param_roles, trained, training)
 
 __all__ = ["Engine", "EngineInfo", "CleanResult", "EngineError", "NotFittedError", "Pipeline", "TASKS", "SPACES",
-           "WEIGHTS_OPTION", "ARCHITECTURE", "architecture"]
+           "WEIGHTS_OPTION", "trained", "training", "param_roles", "TRAINED", "TRAINING", "INFERENCE"]

@@ -9,6 +9,19 @@ Parameters are a frozen dataclass ``Params`` with units in the field names; fitt
 ends with ``_``; ``clean`` on an unfitted trainable engine raises :class:`NotFittedError`.
 Engines that depend on a skeleton record it at fit time and refuse another one with
 :class:`EngineError`.
+
+Each parameter of a trainable engine has one of three roles, set by its field
+(:func:`trained`, :func:`training`; a plain field is *inference*):
+
+- *trained*: fixed by the weights, as the network's width is. Loading weights takes
+  their value; a spec that asks for another is refused. They name the weights'
+  variant (:attr:`Engine.variant`: ``ebf-bias``).
+- *training*: used by ``fit`` only (epochs, seed, augmentation). Loading weights takes
+  their value, so that the spec says how the loaded weights were trained.
+- *inference*: free at clean time; the spec's value is kept.
+
+:meth:`Engine.load` applies the rule for every engine. Committed weights live in
+``engines/<package>/weights/<variant>/`` (:meth:`Engine.default_weights_dir`).
 """
 
 from __future__ import annotations
@@ -17,7 +30,7 @@ import dataclasses
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar, Mapping, Protocol, Sequence, runtime_checkable
+from typing import ClassVar, Mapping, Sequence
 
 import numpy as np
 
@@ -27,15 +40,30 @@ from ..core.skeleton import Skeleton
 TASKS = frozenset({"denoise", "fill"})
 #: the spec option of trainable engines that names a folder of trained weights
 WEIGHTS_OPTION = "weights"
-#: field metadata marking a parameter that shapes the trained network or its training
-#: data, so that a set of weights holds one value of it (:meth:`Engine.trained_architecture`)
-ARCHITECTURE = {"architecture": True}
-
-
-def architecture(params: typing.Any) -> dict[str, typing.Any]:
-    """The parameters of ``params`` marked :data:`ARCHITECTURE`, by name."""
-    return {f.name: getattr(params, f.name) for f in dataclasses.fields(params) if f.metadata.get("architecture")}
 SPACES = frozenset({"angles", "positions"})
+#: the field-metadata key of a parameter's role, and the three roles (module docstring)
+ROLE = "role"
+TRAINED, TRAINING, INFERENCE = "trained", "training", "inference"
+
+
+def trained(default: typing.Any) -> typing.Any:
+    """A parameter field fixed by the weights (``lstm_units: int = trained(64)``)."""
+    return field(default=default, metadata={ROLE: TRAINED})
+
+
+def training(default: typing.Any) -> typing.Any:
+    """A parameter field used by ``fit`` only (``epochs: int = training(20)``)."""
+    return field(default=default, metadata={ROLE: TRAINING})
+
+
+def param_roles(params: typing.Any) -> dict[str, str]:
+    """Each field of a Params dataclass (or instance) and its role, in field order."""
+    return {f.name: f.metadata.get(ROLE, INFERENCE) for f in dataclasses.fields(params)}
+
+
+def _of_role(params: typing.Any, role: str) -> dict[str, typing.Any]:
+    """The values of the parameters of ``params`` with ``role``, by name."""
+    return {name: getattr(params, name) for name, r in param_roles(params).items() if r == role}
 #: the engines to point a user to for takes no trained engine models (translated joints)
 CLASSICAL = "kalman, gaussian, butterworth, lerp, spline"
 
@@ -78,15 +106,6 @@ class CleanResult:
 
     motion: Motion
     diagnostics: Mapping[str, np.ndarray] = field(default_factory=dict)
-
-
-@runtime_checkable
-class EngineProtocol(Protocol):
-    info: EngineInfo
-
-    def fit(self, motions: Sequence[Motion], /) -> "EngineProtocol": ...
-
-    def clean(self, observation: Observation, /) -> CleanResult: ...
 
 
 @dataclass(frozen=True)
@@ -233,51 +252,79 @@ class Engine:
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         raise NotImplementedError(f"engine {self.info.name!r} has no fitted state")
 
+    def training_record(self) -> dict[str, typing.Any]:
+        """What the manifest keeps of the last ``fit`` beyond the parameters (a torch
+        engine's loss per epoch); JSON values."""
+        return {}
+
     def save(self, folder: str | Path, extra_manifest: Mapping | None = None) -> Path:
-        """Save fitted state and its manifest into ``folder``; returns the manifest path."""
+        """Save fitted state and its manifest into ``folder``; returns the manifest path.
+        :func:`workbench.engine.training.train_engine` writes the training's record
+        (``extra_manifest``: clips, data sets and their licences, minutes, test scores)."""
         from .weights import save_weights
 
         self.require_fitted()
         manifest = {
             "engine": self.info.name,
+            "variant": self.variant,
             "spec": self.spec,
             "params": dataclasses.asdict(self.params),
             "skeleton_signature": self.skeleton_signature_,
+            **self.training_record(),
             **(extra_manifest or {}),
         }
         return save_weights(folder, self.state_arrays(), manifest)
 
     def load(self, folder: str | Path) -> "Engine":
-        """Load fitted state saved by :meth:`save` (checksum verified, no pickle)."""
+        """Load fitted state saved by :meth:`save` (checksum verified, no pickle), its
+        trained and training parameters with it (:meth:`weights_params`)."""
         from .weights import load_weights
 
         arrays, manifest = load_weights(folder)
         if manifest.get("engine") != self.info.name:
             raise EngineError(f"{folder}: these weights are for engine {manifest.get('engine')!r}, not {self.info.name!r}")
+        self.params = self.weights_params(manifest, folder)
         self.load_state_arrays(arrays, manifest)
         self.skeleton_signature_ = manifest["skeleton_signature"]
         return self
 
-    def trained_architecture(self, manifest: Mapping) -> dict[str, typing.Any]:
-        """The architecture parameters that the weights of ``manifest`` were trained with
-        (one missing there, newer than the weights, at its default). Raises EngineError
-        where this engine's spec set one to another value than the weights'."""
-        default = self.Params()
-        saved = manifest.get("params") or {}
-        trained = {k: saved.get(k, value) for k, value in architecture(default).items()}
-        asked = {k: v for k, v in architecture(self.params).items() if v != getattr(default, k) and v != trained[k]}
+    def weights_params(self, manifest: Mapping, folder: str | Path = "") -> typing.Any:
+        """This engine's parameters with the trained and training ones of the weights of
+        ``manifest`` (one missing there, newer than the weights, at its default), the
+        inference ones as they are. Raises EngineError where the spec asked for another
+        value of a trained one, or the weights record a parameter this engine lacks."""
+        default, saved = self.Params(), dict(manifest.get("params") or {})
+        roles = param_roles(default)
+        unknown = sorted(set(saved) - set(roles))
+        if unknown:
+            raise EngineError(f"{folder}: these weights record parameters engine {self.info.name!r} does not have "
+                              f"({', '.join(unknown)}): they are from another version of it; retrain them")
+        fixed = {k: saved.get(k, getattr(default, k)) for k, role in roles.items() if role != INFERENCE}
+        asked = {k: v for k, v in _of_role(self.params, TRAINED).items() if v != getattr(default, k) and v != fixed[k]}
         if asked:
             raise EngineError(f"engine {self.info.name!r}: these weights were trained with "
-                              f"{ {k: trained[k] for k in asked} }, not {asked}; train this variant first "
+                              f"{ {k: fixed[k] for k in asked} }, not {asked}; train this variant first "
                               f"(`workbench train SPEC --out FOLDER`, then add {WEIGHTS_OPTION}=FOLDER to the spec)")
-        return trained
+        return dataclasses.replace(self.params, **fixed)
+
+    @property
+    def variant(self) -> str:
+        """The name of this engine's weights: its name, then each trained parameter that
+        differs from its default (``ebf-bias``, ``ebf-lstm_units96``)."""
+        default = self.Params()
+        parts = [self.info.name]
+        for name, value in _of_role(self.params, TRAINED).items():
+            if value != getattr(default, name):
+                parts.append(name if value is True else f"{name}{value}")
+        return "-".join(parts)
 
     def default_weights_dir(self) -> Path:
-        """``engines/<name>/weights`` beside the engine's module."""
+        """``engines/<package>/weights/<variant>/``: where the committed weights of this
+        variant live, in the folder of the package that defines the engine class."""
         import sys
 
         module = sys.modules[type(self).__module__]
-        return Path(module.__file__).resolve().parent / "weights"
+        return Path(module.__file__).resolve().parent / "weights" / self.variant
 
     def load_pretrained(self) -> "Engine":
         """Load the weights of ``weights_folder`` when set, else the committed weights

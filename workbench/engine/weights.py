@@ -22,6 +22,10 @@ from .base import EngineError
 
 WEIGHTS_FILE = "weights.npz"
 MANIFEST_FILE = "manifest.json"
+#: the manifest's layout: 2 records the variant, each parameter under its current name
+#: only, the training's data sets and their terms, and ``test_scores`` (1 had them as
+#: ``validation``)
+FORMAT_VERSION = 2
 
 
 def sha256_file(path: Path) -> str:
@@ -61,6 +65,7 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
         digest = sha256_file(tmp)
     full = {
         **manifest,
+        "format_version": FORMAT_VERSION,
         "file": WEIGHTS_FILE,
         "sha256": digest,
         "code_version": __version__,
@@ -82,6 +87,10 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
         raise EngineError(f"{manifest_path}: no weights manifest here; train the engine first") from None
     except (OSError, ValueError) as err:
         raise EngineError(f"{manifest_path}: unreadable weights manifest ({err})") from None
+    if manifest.get("format_version") != FORMAT_VERSION:
+        raise EngineError(f"{manifest_path}: weights of manifest format {manifest.get('format_version', 1)}, and "
+                          f"this workbench reads format {FORMAT_VERSION}; retrain the engine "
+                          "(`workbench train SPEC --out FOLDER`)")
     path = folder / manifest.get("file", WEIGHTS_FILE)
     if not path.exists():
         raise EngineError(f"{path}: the weights file named by the manifest is missing")
