@@ -282,6 +282,8 @@ class ConvAutoencoderEngine(Engine):
     :meth:`build_network`."""
 
     Params = TrainingParams
+    QUICK_FIT = {"epochs": "1", "frames_per_epoch": "512", "window_frames": "64", "batch_size": "4",
+                 "time_scale_pct": "0"}
 
     # -- the network ----------------------------------------------------------------
     def build_network(self, n_rows: int):

@@ -59,6 +59,7 @@ class WindowEngine(Engine):
     class constants, and implement :meth:`_build_net`, :meth:`_predict` and
     :meth:`_training_pairs`."""
 
+    QUICK_FIT = {"epochs": "1"}
     #: frames between window samples (EBD: 4)
     STRIDE: ClassVar[int] = 1
     #: consecutive window centres per training run (see training.py)

@@ -156,6 +156,8 @@ def test_ik_of_noisy_positions_keeps_bone_lengths_and_gets_close(walk, seed, sig
 
 def test_motion_is_read_only_and_channels_round_trip(walk):
     assert not walk.angles_deg.flags.writeable and not walk.positions.flags.writeable
+    assert not walk.global_rotations.flags.writeable  # was writable: end sites could be corrupted in place
+    assert walk.positions is walk._kinematics[0] and walk.global_rotations is walk._kinematics[1]  # one FK
     again = walk.with_channels(walk.channels)
     assert again.allclose(walk, atol=0)
     assert walk.positions.shape == (walk.n_frames, 31, 3)

@@ -74,20 +74,24 @@ class Motion:
 
     # -- kinematics (cached) --------------------------------------------------------
     @cached_property
+    def _kinematics(self) -> tuple[np.ndarray, np.ndarray]:
+        """Forward kinematics, once per motion: (positions, world rotations), read-only."""
+        from .kinematics import forward_kinematics
+
+        P, R = forward_kinematics(self.skeleton, self.root_positions, self.angles_deg, self.translations)
+        for a in (P, R):
+            a.setflags(write=False)
+        return P, R
+
+    @property
     def global_rotations(self) -> np.ndarray:
-        """(F, J, 3, 3) world rotation of each joint."""
-        from .kinematics import forward_kinematics
+        """(F, J, 3, 3) world rotation of each joint (read-only)."""
+        return self._kinematics[1]
 
-        return forward_kinematics(self.skeleton, self.root_positions, self.angles_deg, self.translations)[1]
-
-    @cached_property
+    @property
     def positions(self) -> np.ndarray:
-        """(F, J, 3) world joint positions in file units (forward kinematics, cached)."""
-        from .kinematics import forward_kinematics
-
-        pos = forward_kinematics(self.skeleton, self.root_positions, self.angles_deg, self.translations)[0]
-        pos.setflags(write=False)
-        return pos
+        """(F, J, 3) world joint positions in file units (read-only)."""
+        return self._kinematics[0]
 
     def end_site_positions(self) -> np.ndarray:
         """(F, E, 3) world positions of the End Sites."""

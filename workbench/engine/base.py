@@ -138,6 +138,9 @@ class Engine:
 
     info: ClassVar[EngineInfo]
     Params: ClassVar[type] = NoParams
+    #: spec options under which ``fit`` takes seconds on a few short takes (what the
+    #: conformance suite trains with to check that a seeded fit repeats)
+    QUICK_FIT: ClassVar[Mapping[str, str]] = {}
     #: fitted skeleton layout signature (trainable engines set it in fit/load)
     skeleton_signature_: str | None = None
     #: the folder that the spec option ``weights=DIR`` names, to load trained state from

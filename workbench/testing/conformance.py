@@ -1,22 +1,33 @@
-"""The engine conformance suite.
+"""The engine conformance suite, for the built-in engines and any third-party one.
 
-``check_engine(make_engine, clean_motion, foreign_motion)`` runs every check in
-:data:`CHECKS` and raises AssertionError naming the engine and the broken rule.
-``make_engine()`` must return a ready engine (trained engines already fitted or
-loaded); ``clean_motion`` is a short clean take of the engine's skeleton and
-``foreign_motion`` a take of another skeleton layout, or a list of such takes (one per
-layout: a skeleton-agnostic engine must clean each, a trained one refuse each).
+Each check in :data:`CHECKS` is ``check(engine, name=..., motion=..., foreign=...,
+make_untrained=..., training=...)``: ``engine`` is ready (a trained one fitted or
+loaded); ``motion`` a short clean take of its skeleton; ``foreign`` takes of other
+skeleton layouts (a skeleton-agnostic engine must clean each, a trained one refuse
+each); ``make_untrained()`` a fresh engine with the quick training options of
+:attr:`workbench.engine.Engine.QUICK_FIT`, and ``training`` the short clean takes it is
+fitted on. A check raises AssertionError naming the engine and the broken rule, or
+:class:`CheckSkipped` with the reason it does not apply (never a silent pass).
+
+- :func:`check_engine` runs the checks and returns the skipped ones with their reasons.
+- :func:`parametrize_with_engine_checks` and :func:`run_check` make them pytest cases,
+  one per engine and check, a skip reported as one.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable, Sequence
 
 import numpy as np
 
 from .. import registry
 from ..core.motion import Motion, Observation, angle_columns, angle_slice, length_columns
-from ..engine import CleanResult, EngineError, EngineInfo, NotFittedError
+from ..engine import CleanResult, Engine, EngineError, EngineInfo, NotFittedError
+
+
+class CheckSkipped(Exception):
+    """A check that does not apply to this engine; the message says why."""
 
 
 def _noisy(motion: Motion, seed: int = 7, gaps: bool = False) -> Observation:
@@ -42,6 +53,7 @@ def _same_frame(a: Motion, b: Motion) -> bool:
 
 
 def check_info(engine, name: str, **_) -> None:
+    assert isinstance(engine, Engine), f"{name}: an engine must be a workbench.engine.Engine"
     assert isinstance(engine.info, EngineInfo), f"{name}: info must be an EngineInfo"
     assert engine.info.tasks, f"{name}: info.tasks is empty"
 
@@ -72,7 +84,7 @@ def check_deterministic(engine, name: str, motion: Motion, **_) -> None:
 
 def check_keeps_observed(engine, name: str, motion: Motion, **_) -> None:
     if not engine.info.keeps_observed:
-        return
+        raise CheckSkipped(f"{name} does not say it keeps observed samples (info.keeps_observed)")
     obs = _noisy(motion, gaps=True)
     out = engine.clean(obs).motion.channels
     mask, lengths, angles = obs.channel_observed, length_columns(motion.skeleton), angle_slice(motion.skeleton)
@@ -82,9 +94,20 @@ def check_keeps_observed(engine, name: str, motion: Motion, **_) -> None:
     assert np.allclose(ang[mask[:, angles]], 0, atol=1e-6), f"{name}: says keeps_observed but changed observed angles"
 
 
+def check_result_is_not_a_view(engine, name: str, motion: Motion, **_) -> None:
+    obs = _noisy(motion, gaps=True)
+    out = engine.clean(obs).motion
+    for field in ("root_positions", "angles_deg", "translations"):
+        assert not np.shares_memory(getattr(out, field), getattr(obs.motion, field)), \
+            f"{name}: the cleaned {field} share memory with the input's"
+
+
 def check_foreign_skeleton(engine, name: str, motion: Motion,
                            foreign: Motion | Sequence[Motion] | None = None, **_) -> None:
-    for other in [foreign] if isinstance(foreign, Motion) else foreign or ():
+    others = [foreign] if isinstance(foreign, Motion) else list(foreign or ())
+    if not others:
+        raise CheckSkipped("no take of another skeleton layout was given")
+    for other in others:
         if engine.info.trainable:
             try:
                 engine.clean(_noisy(other))
@@ -95,9 +118,22 @@ def check_foreign_skeleton(engine, name: str, motion: Motion,
         layout = f"{other.skeleton.n_joints} joints rooted at {other.skeleton.names[0]!r}"
         try:
             check_shapes_and_finite(engine, name, other)
-            check_keeps_observed(engine, name, other)
+            if engine.info.keeps_observed:
+                check_keeps_observed(engine, name, other)
         except AssertionError as err:
             raise AssertionError(f"{err} (on another skeleton: {layout})") from None
+
+
+def check_parameters_are_frozen(engine, name: str, **_) -> None:
+    params = engine.params
+    assert dataclasses.is_dataclass(params) and type(params).__dataclass_params__.frozen, \
+        f"{name}: Params must be a frozen dataclass"
+    for f in dataclasses.fields(params):
+        try:
+            setattr(params, f.name, getattr(params, f.name))
+        except dataclasses.FrozenInstanceError:
+            continue
+        raise AssertionError(f"{name}: parameter {f.name!r} can be changed in place")
 
 
 def check_spec_round_trip(engine, name: str, **_) -> None:
@@ -105,15 +141,33 @@ def check_spec_round_trip(engine, name: str, **_) -> None:
     assert again.spec == engine.spec, f"{name}: spec {engine.spec!r} does not round-trip ({again.spec!r})"
 
 
-def check_unfitted(engine, name: str, motion: Motion, **_) -> None:
+def check_unfitted(engine, name: str, motion: Motion, make_untrained: Callable[[], Engine] | None = None,
+                   **_) -> None:
     if not engine.info.trainable:
-        return
-    fresh = registry.create(engine.spec, pretrained=False)
+        raise CheckSkipped(f"{name} is not trainable: it has nothing to fit")
+    fresh = make_untrained() if make_untrained else registry.create(engine.spec, pretrained=False)
     try:
         fresh.clean(_noisy(motion))
     except NotFittedError:
         return
     raise AssertionError(f"{name}: an unfitted trainable engine must raise NotFittedError")
+
+
+def check_fit_returns_self_and_repeats(engine, name: str, make_untrained: Callable[[], Engine] | None = None,
+                                       training: Sequence[Motion] | None = None, **_) -> None:
+    """``fit`` returns the engine itself, and two seeded fits give the same state."""
+    if not training:
+        raise CheckSkipped("no training takes were given")
+    if make_untrained is None:
+        raise CheckSkipped("no way to make an untrained engine was given (make_untrained)")
+    first = make_untrained()
+    assert first.fit(list(training)) is first, f"{name}: fit must return the engine itself"
+    if not engine.info.trainable:
+        return
+    a, b = first.state_arrays(), make_untrained().fit(list(training)).state_arrays()
+    assert a.keys() == b.keys(), f"{name}: two fits saved different state"
+    changed = [k for k in a if not np.array_equal(a[k], b[k])]
+    assert not changed, f"{name}: two seeded fits on the same takes differ in {', '.join(changed[:5])}"
 
 
 CHECKS: dict[str, Callable] = {
@@ -122,19 +176,57 @@ CHECKS: dict[str, Callable] = {
     "input_untouched": check_input_untouched,
     "deterministic": check_deterministic,
     "keeps_observed": check_keeps_observed,
+    "not_a_view": check_result_is_not_a_view,
     "foreign_skeleton": check_foreign_skeleton,
+    "frozen_params": check_parameters_are_frozen,
     "spec_round_trip": check_spec_round_trip,
     "unfitted": check_unfitted,
+    "fit": check_fit_returns_self_and_repeats,
 }
 
 
-def check_engine(make_engine: Callable, motion: Motion, foreign: Motion | Sequence[Motion] | None = None,
-                 checks: list[str] | None = None) -> None:
-    """Run the conformance checks (all, or the named ones) on one engine."""
+def check_engine(make_engine: Callable[[], Engine], motion: Motion, foreign: Motion | Sequence[Motion] | None = None,
+                 checks: list[str] | None = None, make_untrained: Callable[[], Engine] | None = None,
+                 training: Sequence[Motion] | None = None) -> dict[str, str]:
+    """Run the conformance checks (all, or the named ones) on one engine; returns the
+    checks that did not apply, with the reason. Raises AssertionError on the first
+    broken rule."""
     engine = make_engine()
     name = engine.info.name
+    skipped = {}
     for key in checks or list(CHECKS):
-        CHECKS[key](engine, name=name, motion=motion, foreign=foreign)
+        try:
+            CHECKS[key](engine, name=name, motion=motion, foreign=foreign, make_untrained=make_untrained,
+                        training=training)
+        except CheckSkipped as why:
+            skipped[key] = str(why)
+    return skipped
+
+
+def quick_untrained(name: str) -> Callable[[], Engine]:
+    """A factory of fresh, untrained engines ``name`` with its quick training options
+    (:attr:`workbench.engine.Engine.QUICK_FIT`), for :func:`check_fit_returns_self_and_repeats`."""
+    options = ",".join(f"{k}={v}" for k, v in registry.get(name).QUICK_FIT.items())
+    return lambda: registry.create(f"{name}:{options}" if options else name, pretrained=False)
+
+
+def parametrize_with_engine_checks(names: Sequence[str]):
+    """A ``pytest.mark.parametrize`` over every (engine name, check name) pair, as the
+    arguments ``engine`` and ``check``; run each with :func:`run_check`."""
+    import pytest
+
+    return pytest.mark.parametrize("engine, check", [pytest.param(n, c, id=f"{n}-{c}") for n in names
+                                                     for c in CHECKS])
+
+
+def run_check(check: str, make_engine: Callable[[], Engine], motion: Motion, **context) -> None:
+    """Run one check inside a pytest test: a broken rule fails it, a check that does not
+    apply skips it with the reason (``context``: foreign, make_untrained, training)."""
+    import pytest
+
+    skipped = check_engine(make_engine, motion, checks=[check], **context)
+    if skipped:
+        pytest.skip(skipped[check])
 
 
 def conformance_clips(root=None, frames: int = 150, dataset: str | None = None) -> tuple[Motion, list[Motion]]:
