@@ -24,7 +24,6 @@ from scipy.signal import butter, sosfiltfilt
 
 from workbench.core.motion import Observation
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
-
 from workbench.engine.signal import prepare
 
 
@@ -54,7 +53,7 @@ class Butterworth(Engine):
         summary="zero-phase Butterworth low-pass of each channel (gaps bridged linearly first)",
         tasks=frozenset({"denoise", "fill"}),
         citation="Winter, Biomechanics and Motor Control of Human Movement, ch. 3 "
-                 "(4th-order zero-lag Butterworth, ~6 Hz)",
+        "(4th-order zero-lag Butterworth, ~6 Hz)",
     )
 
     def sos(self, fps: float) -> np.ndarray:

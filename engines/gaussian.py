@@ -38,6 +38,7 @@ from workbench.engine.signal import normalized_gaussian, prepare
 #: certainty of the linearly bridged samples of a gap (observed samples have 1)
 GAP_CERTAINTY = 1e-3
 
+
 class Gaussian(Engine):
     """Gap-aware Gaussian smoothing (Lou and Chai 2010; Mall et al. 2017's 58/125 ms)."""
 
@@ -55,7 +56,7 @@ class Gaussian(Engine):
         summary="Gaussian smoothing of each channel over time (normalised convolution across gaps)",
         tasks=frozenset({"denoise", "fill"}),
         citation="Lou and Chai 2010 §4.2 (Gaussian filter baseline); "
-                 "Mall et al. 2017 §4.1 (sigma 58 ms and 125 ms at 120 fps)",
+        "Mall et al. 2017 §4.1 (sigma 58 ms and 125 ms at 120 fps)",
     )
 
     def sigma_frames(self, fps: float) -> float:

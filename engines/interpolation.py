@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from workbench.core.motion import Observation
 from workbench.engine import CleanResult, Engine, EngineInfo
-
 from workbench.engine.signal import fill_gaps
 
 

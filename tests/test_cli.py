@@ -14,7 +14,10 @@ from workbench.io.mask import read_mask
 
 def test_split_engine_specs():
     assert split_engine_specs(["ebf:bias=true,free=1,gaussian", "lerp>gaussian:sigma_ms=58"]) == [
-        "ebf:bias=true,free=1", "gaussian", "lerp>gaussian:sigma_ms=58"]
+        "ebf:bias=true,free=1",
+        "gaussian",
+        "lerp>gaussian:sigma_ms=58",
+    ]
 
 
 def test_engines_and_data_listing(capsys):
@@ -56,13 +59,16 @@ def test_clean_treats_nan_as_missing(tmp_path, walk):
     assert np.isfinite(read_bvh(out).channels).all()
 
 
-@pytest.mark.parametrize("args,needle", [
-    (["clean", "missing.bvh", "-o", "{tmp}/o.bvh", "--engine", "identity"], "cannot read"),
-    (["clean", "{bad}", "-o", "{tmp}/o.bvh", "--engine", "identity"], "truncated"),
-    (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "nope"], "unknown engine"),
-    (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),
-    (["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--data", "{tmp}/none"], "not a folder"),
-])
+@pytest.mark.parametrize(
+    "args,needle",
+    [
+        (["clean", "missing.bvh", "-o", "{tmp}/o.bvh", "--engine", "identity"], "cannot read"),
+        (["clean", "{bad}", "-o", "{tmp}/o.bvh", "--engine", "identity"], "truncated"),
+        (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "nope"], "unknown engine"),
+        (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),
+        (["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--data", "{tmp}/none"], "not a folder"),
+    ],
+)
 def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, data_root, capsys):
     good = data_root / "cmu" / "walk" / "02_01.bvh"
     bad = tmp_path / "bad.bvh"
@@ -76,8 +82,22 @@ def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, da
 
 def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path, capsys):
     js = tmp_path / "b.json"
-    assert main(["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--clips", "cmu-daz/kick/10_0*",
-                 "--json", str(js)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--engines",
+                "identity",
+                "--corrupt",
+                "angular:0.5",
+                "--clips",
+                "cmu-daz/kick/10_0*",
+                "--json",
+                str(js),
+            ]
+        )
+        == 0
+    )
     assert "no train/validation/test split; benchmarking all" in capsys.readouterr().err
     clips = json.loads(js.read_text())["clips"]
     assert clips and all(c.startswith("cmu-daz/kick/10_0") for c in clips)
@@ -85,8 +105,28 @@ def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path,
 
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
-    assert main(["bench", "--engines", "identity,gaussian", "--corrupt", "angular:0.5", "--split", "test",
-                 "--clips", "cmu/run/*", "--seeds", "2", "--per-clip", "rms_angle_deg", "--json", str(js)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--engines",
+                "identity,gaussian",
+                "--corrupt",
+                "angular:0.5",
+                "--split",
+                "test",
+                "--clips",
+                "cmu/run/*",
+                "--seeds",
+                "2",
+                "--per-clip",
+                "rms_angle_deg",
+                "--json",
+                str(js),
+            ]
+        )
+        == 0
+    )
     out, err = capsys.readouterr()
     assert out.splitlines()[0].startswith("| engine | rms_angle_deg | mpjpe_cm")
     doc = json.loads(js.read_text())
@@ -108,7 +148,8 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     assert "2 of the clean clips have capture glitches" in err
     assert "cmu/run/35_26: RightFingerBase turns 170 degrees in one frame (frames 64-67)" in err
     assert doc["reference_glitches"]["cmu/run/35_26"] == [
-        {"joint": "RightFingerBase", "first": 64, "last": 67, "turn_deg": pytest.approx(169.74, abs=0.01)}]
+        {"joint": "RightFingerBase", "first": 64, "last": 67, "turn_deg": pytest.approx(169.74, abs=0.01)}
+    ]
     assert set(doc["reference_glitches"]) == {"cmu/run/35_26", "cmu/run/16_46"}
 
 
@@ -124,20 +165,52 @@ def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_ref
     135-frame walk_happy_002) is left out with a note, not the run; a trained engine
     that refuses a skeleton is named."""
     js = tmp_path / "b.json"
-    assert main(["bench", "--engines", "kalman,kalman-learned", "--corrupt", "block:150", "--clips", "*/walk/*",
-                 "--json", str(js)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--engines",
+                "kalman,kalman-learned",
+                "--corrupt",
+                "block:150",
+                "--clips",
+                "*/walk/*",
+                "--json",
+                str(js),
+            ]
+        )
+        == 0
+    )
     out, err = capsys.readouterr()
     doc = json.loads(js.read_text())
     assert set(doc["summary_by_dataset"]) == {"bandai", "cmu"} and "\nbandai (" in "\n" + out and "\ncmu (" in out
-    assert doc["skipped"] == {"bandai/walk/dataset-1_walk_happy_002": "block:150 needs a clip of at least 152 frames "
-                              "(the block plus one observed frame on each side); this one has 135"}
+    assert doc["skipped"] == {
+        "bandai/walk/dataset-1_walk_happy_002": "block:150 needs a clip of at least 152 frames "
+        "(the block plus one observed frame on each side); this one has 135"
+    }
     assert "bandai/walk/dataset-1_walk_happy_002" not in doc["clips"] and "could not be corrupted with block:150" in err
     assert set(doc["refused"]["kalman-learned"]) == {c for c in doc["clips"] if c.startswith("bandai/")}
     assert "kalman-learned did not clean" in err and "Clean it with a classical engine" in err
     assert "mpjpe_cm" in doc["summary_by_dataset"]["bandai"]["kalman"]
     assert "mpjpe_cm" not in doc["summary_by_dataset"]["bandai"]["kalman-learned"]
-    assert main(["bench", "--engines", "kalman", "--corrupt", "angular:0.5", "--dataset", "bandai",
-                 "--clips", "*/walk/*", "--json", str(js)]) == 0
+    assert (
+        main(
+            [
+                "bench",
+                "--engines",
+                "kalman",
+                "--corrupt",
+                "angular:0.5",
+                "--dataset",
+                "bandai",
+                "--clips",
+                "*/walk/*",
+                "--json",
+                str(js),
+            ]
+        )
+        == 0
+    )
     out, _ = capsys.readouterr()
     clips = json.loads(js.read_text())["clips"]
     assert clips and all(c.startswith("bandai/") for c in clips) and out.startswith("| engine |")
@@ -152,14 +225,23 @@ def test_train_refuses_translated_joints_and_defaults_to_the_committed_dataset(c
 def test_per_clip_marks_a_metric_no_seed_defines():
     from workbench.evaluate import BenchResult
 
-    result = BenchResult("angular:0.5", [0, 1], ["a", "b"], rows=[
-        {"engine": "x", "clip": "a", "seed": 0, "frames": 10, "gap_mpjpe_cm": 1.0},
-        {"engine": "x", "clip": "a", "seed": 1, "frames": 10, "gap_mpjpe_cm": float("nan")},
-        {"engine": "x", "clip": "b", "seed": 0, "frames": 20},
-    ], summary={"x": {"gap_mpjpe_cm": 1.0}})
+    result = BenchResult(
+        "angular:0.5",
+        [0, 1],
+        ["a", "b"],
+        rows=[
+            {"engine": "x", "clip": "a", "seed": 0, "frames": 10, "gap_mpjpe_cm": 1.0},
+            {"engine": "x", "clip": "a", "seed": 1, "frames": 10, "gap_mpjpe_cm": float("nan")},
+            {"engine": "x", "clip": "b", "seed": 0, "frames": 20},
+        ],
+        summary={"x": {"gap_mpjpe_cm": 1.0}},
+    )
     assert result.per_clip("gap_mpjpe_cm") == {"a": {"x": 1.0}, "b": {"x": pytest.approx(float("nan"), nan_ok=True)}}
     assert result.per_clip_markdown("gap_mpjpe_cm").splitlines()[2:] == [
-        "| a | 10 | 1.000 |", "| b | 20 | – |", "| **mean** | | 1.000 |"]
+        "| a | 10 | 1.000 |",
+        "| b | 20 | – |",
+        "| **mean** | | 1.000 |",
+    ]
     with pytest.raises(ValueError, match="unknown metric"):
         result.per_clip("speed")
 
@@ -171,8 +253,9 @@ def test_module_entry_point_runs():
 
 def test_a_reader_that_stops_early_gets_no_traceback():
     """`workbench engines | head -1`: the pipe closes before the listing is written."""
-    proc = subprocess.Popen([sys.executable, "-m", "workbench", "engines"], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "workbench", "engines"], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
     proc.stdout.close()  # before the child has imported anything, so every write fails
     err = proc.stderr.read().decode()
     assert proc.wait() == 0 and "Traceback" not in err, err

@@ -38,5 +38,11 @@ def _engine(name, training):
 @parametrize_with_engine_checks(registry.available())
 def test_engine_conformance(engine, check, takes, training):
     motion, foreign = takes
-    run_check(check, lambda: _engine(engine, training), motion, foreign=foreign,
-              make_untrained=quick_untrained(engine), training=training)
+    run_check(
+        check,
+        lambda: _engine(engine, training),
+        motion,
+        foreign=foreign,
+        make_untrained=quick_untrained(engine),
+        training=training,
+    )

@@ -22,8 +22,8 @@ def test_identity_bridges_gaps_and_keeps_observed(walk):
 def test_observation_bridged_is_what_the_engines_bridge(walk):
     """Observation.bridged (the corrupt command's BVH, the app's noisy skeleton) holds
     the channels every angle engine starts from (workbench.engine.signal.bridge_gaps)."""
-    from workbench.engine.signal import bridge_gaps
     from workbench.corruption import parse_corruption
+    from workbench.engine.signal import bridge_gaps
 
     obs = parse_corruption("angular:0.5+outliers:0.05+gaps:0.02").apply(walk, seed=4)
     assert obs.has_gaps
@@ -171,4 +171,3 @@ def test_train_writes_its_variant_s_folder_with_a_manifest_of_what_it_used(tmp_p
     assert len(training["clips"]) == 36 and all(c.startswith("cmu/") for c in training["clips"])
     assert manifest["test_scores"]["split"] == "test" and manifest["test_scores"]["rms_angle_deg"] > 0
     assert "note: training on the cmu training split" in capsys.readouterr().err
-

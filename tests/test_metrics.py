@@ -56,7 +56,9 @@ def test_gap_mpjpe_counts_the_positions_that_depend_on_missing_angles(walk):
     assert gap > 0
     observed[:] = True
     observed[5, 0] = False  # the root missing: every position in that frame depends on it
-    assert metrics.gap_mpjpe_cm(walk, est, observed) == pytest.approx(metrics.joint_position_error_cm(walk, est)[5].mean())
+    assert metrics.gap_mpjpe_cm(walk, est, observed) == pytest.approx(
+        metrics.joint_position_error_cm(walk, est)[5].mean()
+    )
     observed[:] = True
     observed[:, sk.index("LThumb")] = False  # a leaf: no position depends on its angles
     assert np.isnan(metrics.gap_mpjpe_cm(walk, est, observed))
@@ -116,10 +118,18 @@ def test_a_studio_take_is_aligned_at_its_hips_and_its_root_chain_is_the_trajecto
 def test_a_stretching_bone_is_scored_in_positions(stretchy_take):
     """A translated joint's translation is no angle: getting its stretch wrong shows in
     the joint positions it moves, not in the angles."""
-    rigid = stretchy_take.replace(translations=np.concatenate(
-        [stretchy_take.translations[:, :1],
-         np.broadcast_to(stretchy_take.skeleton.offsets[stretchy_take.skeleton.translated[1]],
-                         stretchy_take.translations[:, 1:].shape)], axis=1))
+    rigid = stretchy_take.replace(
+        translations=np.concatenate(
+            [
+                stretchy_take.translations[:, :1],
+                np.broadcast_to(
+                    stretchy_take.skeleton.offsets[stretchy_take.skeleton.translated[1]],
+                    stretchy_take.translations[:, 1:].shape,
+                ),
+            ],
+            axis=1,
+        )
+    )
     assert metrics.rms_angle_deg(stretchy_take, rigid) == 0
     err = metrics.joint_position_error_cm(stretchy_take, rigid)
     arm = [stretchy_take.skeleton.index(n) for n in ("LowerArm_L", "Hand_L")]

@@ -10,8 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from workbench.engine import weights
-from workbench.engine import EngineError
+from workbench.engine import EngineError, weights
 from workbench.engine.weights import MANIFEST_FILE, WEIGHTS_FILE, code_commit, load_weights, save_weights
 
 
@@ -26,8 +25,9 @@ def test_round_trip_and_provenance(saved):
     assert np.array_equal(arrays["w"], np.arange(6.0).reshape(2, 3))
     assert manifest["engine"] == "demo" and manifest["params"] == {"k": 1}
     assert manifest["file"] == WEIGHTS_FILE and len(manifest["sha256"]) == 64
-    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                          cwd=Path(weights.__file__).resolve().parents[2])
+    head = subprocess.run(
+        ["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(weights.__file__).resolve().parents[2]
+    )
     if head.returncode == 0:  # a git checkout, as in CI
         assert manifest["code_commit"].split("+")[0] == head.stdout.strip()
 

@@ -60,20 +60,30 @@ def cmd_data(args) -> int:
     print(f"data root: {root}")
     wide = {"id": 4, "category": 8, "who": 13}
     for c in clips:
-        wide = {"id": max(wide["id"], len(c.id)), "category": max(wide["category"], len(c.category)),
-                "who": max(wide["who"], len(c.subject or c.style))}
-    print(f"{'clip':{wide['id']}s}  {'category':{wide['category']}s}  {'subject/style':{wide['who']}s}  "
-          f"{'split':10s} {'frames':>6s} {'fps':>4s}")
+        wide = {
+            "id": max(wide["id"], len(c.id)),
+            "category": max(wide["category"], len(c.category)),
+            "who": max(wide["who"], len(c.subject or c.style)),
+        }
+    print(
+        f"{'clip':{wide['id']}s}  {'category':{wide['category']}s}  {'subject/style':{wide['who']}s}  "
+        f"{'split':10s} {'frames':>6s} {'fps':>4s}"
+    )
     for c in clips:
-        print(f"{c.id:{wide['id']}s}  {c.category:{wide['category']}s}  {c.subject or c.style:{wide['who']}s}  "
-              f"{c.split or '-':10s} {c.frames or '?':>6} {f'{c.fps:g}' if c.fps else '?':>4}")
+        print(
+            f"{c.id:{wide['id']}s}  {c.category:{wide['category']}s}  {c.subject or c.style:{wide['who']}s}  "
+            f"{c.split or '-':10s} {c.frames or '?':>6} {f'{c.fps:g}' if c.fps else '?':>4}"
+        )
     for name in dict.fromkeys(c.dataset for c in clips):
         mine = [c for c in clips if c.dataset == name]
         counts = ", ".join(f"{n} {s}" for s in SPLITS if (n := sum(c.split == s for c in mine)))
         rates = "/".join(f"{r:g}" for r in sorted({c.fps for c in mine if c.fps}))
         frames = sum(c.frames for c in mine)
-        print(f"{name or 'clips'}: {len(mine)} clips ({counts or 'in no split'})"
-              + (f", {frames:,} frames" if frames else "") + (f" at {rates} fps" if rates else ""))
+        print(
+            f"{name or 'clips'}: {len(mine)} clips ({counts or 'in no split'})"
+            + (f", {frames:,} frames" if frames else "")
+            + (f" at {rates} fps" if rates else "")
+        )
     if any(c.dataset == "cmu" for c in clips):
         print("Frame 0 of the cgspeed conversions (cmu) is a T-pose reference frame; loading drops it.")
     return 0
@@ -92,9 +102,10 @@ def cmd_engines(args) -> int:
             print(f"{name:16s} (failed to load: {err})")
             continue
         info = cls.info
-        params = ", ".join([f"{f.name}={f.default}" for f in dataclasses.fields(cls.Params)]
-                           + ([f"{WEIGHTS_OPTION}=DIR (trained weights; default: the committed ones)"]
-                              if info.trainable else []))
+        params = ", ".join(
+            [f"{f.name}={f.default}" for f in dataclasses.fields(cls.Params)]
+            + ([f"{WEIGHTS_OPTION}=DIR (trained weights; default: the committed ones)"] if info.trainable else [])
+        )
         flags = "/".join(sorted(info.tasks)) + f", {info.space}" + (", trainable" if info.trainable else "")
         print(f"{name:16s} {info.summary} [{flags}]" + (f"\n{'':16s} parameters: {params}" if params else ""))
     return 0
@@ -147,8 +158,11 @@ def _clean_take(engine, source: Path, output: Path, mask: str | None, keep_refer
     if has_reference_frame(motion) and not keep_reference:
         reference, motion = motion.channels[:1], motion.slice(1)
         observed = None if observed is None else observed[1:]
-        print(f"note: frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "
-              "(--keep-reference cleans it with the motion)", file=sys.stderr)
+        print(
+            f"note: frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "
+            "(--keep-reference cleans it with the motion)",
+            file=sys.stderr,
+        )
     obs = Observation(motion, observed)
     t0 = time.perf_counter()
     result = engine.clean(obs)
@@ -157,8 +171,10 @@ def _clean_take(engine, source: Path, output: Path, mask: str | None, keep_refer
     if reference is not None:
         cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
     write_bvh(output, cleaned)
-    print(f"wrote {output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
-          f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled")
+    print(
+        f"wrote {output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
+        f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled"
+    )
 
 
 def cmd_clean(args) -> int:
@@ -174,23 +190,26 @@ def cmd_clean(args) -> int:
         raise UserError("--mask is one take's mask; in a folder each take's own INPUT.mask.json is used")
     if output.resolve() == source.resolve() or output.exists() and not output.is_dir():
         raise UserError(f"-o {output}: for a folder of takes, name another folder for the cleaned ones")
-    takes = [p for p in files_under(source)
-             if p.suffix.lower() in MOTION_SUFFIXES and not p.resolve().is_relative_to(output.resolve())]
+    takes = [
+        p
+        for p in files_under(source)
+        if p.suffix.lower() in MOTION_SUFFIXES and not p.resolve().is_relative_to(output.resolve())
+    ]
     if not takes:
         raise UserError(f"{source} holds no .bvh or .amc file")
     engine = registry.create(args.engine)
     failed = 0
     for path in takes:
         try:
-            _clean_take(engine, path, output / path.relative_to(source).with_suffix(".bvh"), None,
-                        args.keep_reference)
+            _clean_take(engine, path, output / path.relative_to(source).with_suffix(".bvh"), None, args.keep_reference)
         except _user_errors() as err:  # one bad take does not stop the others
             failed += 1
             msg = _message(err)
             print(f"workbench clean: error: {msg if msg.startswith(str(path)) else f'{path}: {msg}'}", file=sys.stderr)
     if failed:
-        print(f"workbench clean: {failed} of {len(takes)} takes failed (above); the others were written",
-              file=sys.stderr)
+        print(
+            f"workbench clean: {failed} of {len(takes)} takes failed (above); the others were written", file=sys.stderr
+        )
         return 2
     return 0
 
@@ -208,11 +227,14 @@ def _bench_clips(args):
     else:
         chosen = matched
         if matched and args.split != "all":
-            print(f"note: these clips have no train/validation/test split; benchmarking all {len(matched)}",
-                  file=sys.stderr)
+            print(
+                f"note: these clips have no train/validation/test split; benchmarking all {len(matched)}",
+                file=sys.stderr,
+            )
     if not chosen:
-        raise UserError(f"no clips match split={args.split!r} dataset={args.dataset!r} clips={args.clips!r} "
-                        f"under {root}")
+        raise UserError(
+            f"no clips match split={args.split!r} dataset={args.dataset!r} clips={args.clips!r} under {root}"
+        )
     return chosen
 
 
@@ -222,8 +244,10 @@ def _bench_notes(result) -> None:
     from .data.quality import MAX_TURN_DPS
 
     if result.skipped:
-        print(f"note: {len(result.skipped)} clips could not be corrupted with {result.corruption} and were left out:",
-              file=sys.stderr)
+        print(
+            f"note: {len(result.skipped)} clips could not be corrupted with {result.corruption} and were left out:",
+            file=sys.stderr,
+        )
         for clip, reason in result.skipped.items():
             print(f"  {clip}: {reason}", file=sys.stderr)
     for spec, refused in result.refused.items():
@@ -234,9 +258,12 @@ def _bench_notes(result) -> None:
             more = f" and {len(clips) - 1} more" if len(clips) > 1 else ""
             print(f"note: {spec} did not clean {len(clips)} clips ({clips[0]}{more}): {reason}", file=sys.stderr)
     if result.glitches:
-        print(f"note: {len(result.glitches)} of the clean clips have capture glitches, where a joint turns faster "
-              f"than a body can (over {MAX_TURN_DPS:,.0f} degrees/s); an engine that removes one is scored as wrong "
-              "there:", file=sys.stderr)
+        print(
+            f"note: {len(result.glitches)} of the clean clips have capture glitches, where a joint turns faster "
+            f"than a body can (over {MAX_TURN_DPS:,.0f} degrees/s); an engine that removes one is scored as wrong "
+            "there:",
+            file=sys.stderr,
+        )
         for clip, found in result.glitches.items():
             print(f"  {clip}: " + "; ".join(map(str, found)), file=sys.stderr)
 
@@ -248,14 +275,19 @@ def cmd_bench(args) -> int:
     chosen = _bench_clips(args)
     clips = [(c.id, c.load()) for c in chosen]
     seeds = list(range(args.seed0, args.seed0 + args.seeds))
-    print(f"benchmark: {len(specs)} engines x {len(clips)} clips x {len(seeds)} seeds, corruption {args.corrupt}",
-          file=sys.stderr)
+    print(
+        f"benchmark: {len(specs)} engines x {len(clips)} clips x {len(seeds)} seeds, corruption {args.corrupt}",
+        file=sys.stderr,
+    )
     progress = None
     if args.verbose:
+
         def progress(msg):
             print("  " + msg, file=sys.stderr)
-    result = run_benchmark(specs, args.corrupt, clips, seeds, progress=progress,
-                           datasets={c.id: c.dataset for c in chosen})
+
+    result = run_benchmark(
+        specs, args.corrupt, clips, seeds, progress=progress, datasets={c.id: c.dataset for c in chosen}
+    )
     datasets = result.datasets()
     if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
         for name, ids in datasets.items():
@@ -295,15 +327,20 @@ def cmd_train(args) -> int:
     if not engine.info.trainable:
         raise UserError(f"engine {engine.info.name!r} has nothing to train")
     if engine.weights_folder is not None:
-        raise UserError(f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
-                        "(--out says where the new weights go)")
+        raise UserError(
+            f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
+            "(--out says where the new weights go)"
+        )
     root = find_data_root(args.data)
     clips = catalogue(root)
     dataset = args.dataset
     if dataset is None and len({c.dataset for c in select(clips, "train")}) > 1:
         dataset = COMMITTED_WEIGHTS_DATASET
-        print(f"note: training on the {dataset} training split, as the committed weights were "
-              "(--dataset NAME trains on another)", file=sys.stderr)
+        print(
+            f"note: training on the {dataset} training split, as the committed weights were "
+            "(--dataset NAME trains on another)",
+            file=sys.stderr,
+        )
     clips = select(clips, dataset=dataset)
     train = select(clips, "train") or select(clips, None)
     if not train:
@@ -314,22 +351,26 @@ def cmd_train(args) -> int:
     if len(used) < len(loaded):
         print(f"note: training on the {len(used)} clips of the first clip's skeleton only", file=sys.stderr)
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
-    print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)",
-          file=sys.stderr)
+    print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.variant)
     test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
-        run = train_engine(engine, [(c.id, m) for c, m in used], out, test=test,
-                           datasets={c.id: c.dataset for c, _ in used})
+        run = train_engine(
+            engine, [(c.id, m) for c, m in used], out, test=test, datasets={c.id: c.dataset for c, _ in used}
+        )
     except KeyboardInterrupt:
         raise UserError("training interrupted; nothing was saved") from None
     if run.test_scores:
         scores = {k: v for k, v in run.test_scores.items() if isinstance(v, float)}
-        print(f"test split, {run.test_scores['corruption']}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()),
-              file=sys.stderr)
+        print(
+            f"test split, {run.test_scores['corruption']}: " + ", ".join(f"{k} {v:.3f}" for k, v in scores.items()),
+            file=sys.stderr,
+        )
     memory = "" if np.isnan(run.peak_mb) else f" using {run.peak_mb:,.0f} MB more memory at most"
-    print(f"trained in {run.minutes:.1f} min{memory}; saved {run.manifest}; clean with it as "
-          f"--engine '{engine.spec}{',' if ':' in engine.spec else ':'}{WEIGHTS_OPTION}={out}'")
+    print(
+        f"trained in {run.minutes:.1f} min{memory}; saved {run.manifest}; clean with it as "
+        f"--engine '{engine.spec}{',' if ':' in engine.spec else ':'}{WEIGHTS_OPTION}={out}'"
+    )
     if args.promote:
         import shutil
 
@@ -361,8 +402,9 @@ def cmd_report(args) -> int:
         print(f"note: {spec} left out: {message}", file=sys.stderr)
 
     specs = split_engine_specs(args.engine) if args.engine else default_engines()
-    path = write_report(args.output, args.clip, args.corrupt, args.seed, specs, args.frame,
-                        on_refused=None if args.engine else refused)  # the defaults: those that take it
+    path = write_report(
+        args.output, args.clip, args.corrupt, args.seed, specs, args.frame, on_refused=None if args.engine else refused
+    )  # the defaults: those that take it
     print(f"wrote {path}")
     return 0
 
@@ -412,26 +454,38 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_corrupt)
 
     sp = sub.add_parser("clean", help="clean a take (or a folder of takes) with an engine and write BVH")
-    sp.add_argument("input", help="a BVH/AMC take, or a folder of them (cleaned into the folder -o names, "
-                                  "with the same layout)")
+    sp.add_argument(
+        "input", help="a BVH/AMC take, or a folder of them (cleaned into the folder -o names, with the same layout)"
+    )
     sp.add_argument("-o", "--output", required=True)
     sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
-    sp.add_argument("--keep-reference", action="store_true",
-                    help="clean a T-pose frame 0 with the motion (default: write it back untouched)")
+    sp.add_argument(
+        "--keep-reference",
+        action="store_true",
+        help="clean a T-pose frame 0 with the motion (default: write it back untouched)",
+    )
     sp.set_defaults(func=cmd_clean)
 
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
     sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
     sp.add_argument("--corrupt", required=True, metavar="SPEC")
-    sp.add_argument("--split", choices=[*SPLITS, "all"], default="test",
-                    help="the clips of this split of every dataset that has one (default: test)")
+    sp.add_argument(
+        "--split",
+        choices=[*SPLITS, "all"],
+        default="test",
+        help="the clips of this split of every dataset that has one (default: test)",
+    )
     data_opt(sp)
     sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
     sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
     sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
-    sp.add_argument("--per-clip", choices=METRICS, metavar="METRIC",
-                    help=f"also a table of METRIC per clip, mean over the seeds ({', '.join(METRICS)})")
+    sp.add_argument(
+        "--per-clip",
+        choices=METRICS,
+        metavar="METRIC",
+        help=f"also a table of METRIC per clip, mean over the seeds ({', '.join(METRICS)})",
+    )
     sp.add_argument("--json", metavar="PATH")
     sp.add_argument("-v", "--verbose", action="store_true")
     sp.set_defaults(func=cmd_bench)
@@ -439,8 +493,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("train", help="train an engine on the training split")
     sp.add_argument("engine", metavar="SPEC")
     sp.add_argument("--epochs", type=int)
-    data_opt(sp, f"train on this dataset's training split (default: {COMMITTED_WEIGHTS_DATASET} where the data "
-                 "root has the splits of several)")
+    data_opt(
+        sp,
+        f"train on this dataset's training split (default: {COMMITTED_WEIGHTS_DATASET} where the data "
+        "root has the splits of several)",
+    )
     sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias)")
     sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
     sp.set_defaults(func=cmd_train)
@@ -448,13 +505,22 @@ def build_parser() -> argparse.ArgumentParser:
     from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION, DEFAULT_ENGINES
 
     def take_opts(sp):
-        sp.add_argument("clip", nargs="?", default=DEFAULT_CLIP,
-                        help=f"clip id or BVH/AMC file (default {DEFAULT_CLIP})")
-        sp.add_argument("--corrupt", default=DEFAULT_CORRUPTION, metavar="SPEC",
-                        help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})")
+        sp.add_argument(
+            "clip", nargs="?", default=DEFAULT_CLIP, help=f"clip id or BVH/AMC file (default {DEFAULT_CLIP})"
+        )
+        sp.add_argument(
+            "--corrupt",
+            default=DEFAULT_CORRUPTION,
+            metavar="SPEC",
+            help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})",
+        )
         sp.add_argument("--seed", type=int, default=0)
-        sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default: "
-                        f"those of {', '.join(DEFAULT_ENGINES)} that load)")
+        sp.add_argument(
+            "--engine",
+            action="append",
+            metavar="SPEC",
+            help=f"engine spec, repeatable (default: those of {', '.join(DEFAULT_ENGINES)} that load)",
+        )
 
     sp = sub.add_parser("gui", help="open the desktop app (also: workbench with no arguments)")
     take_opts(sp)

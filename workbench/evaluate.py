@@ -25,11 +25,10 @@ import numpy as np
 
 from . import metrics, registry
 from .core.motion import Case, Motion, Observation
-from .engine import Engine, EngineError
 from .corruption import CorruptionApplyError, make_case, parse_corruption
 from .data.quality import Glitch, reference_glitches
+from .engine import Engine, EngineError
 from .metrics import METRICS
-
 
 #: summary columns after the metrics: speed and memory
 COST_COLUMNS = ("frames_per_s", "peak_mb")
@@ -100,12 +99,19 @@ class BenchResult:
     peaks: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        return {"corruption": self.corruption, "seeds": self.seeds, "clips": self.clips,
-                "rows": self.rows, "summary": self.summary,
-                "summary_by_dataset": {name: self.summarise(name) for name in self.datasets()},
-                "skipped": self.skipped, "refused": self.refused,
-                "reference_glitches": {clip: [dataclasses.asdict(g) for g in found]
-                                       for clip, found in self.glitches.items()}}
+        return {
+            "corruption": self.corruption,
+            "seeds": self.seeds,
+            "clips": self.clips,
+            "rows": self.rows,
+            "summary": self.summary,
+            "summary_by_dataset": {name: self.summarise(name) for name in self.datasets()},
+            "skipped": self.skipped,
+            "refused": self.refused,
+            "reference_glitches": {
+                clip: [dataclasses.asdict(g) for g in found] for clip, found in self.glitches.items()
+            },
+        }
 
     def datasets(self) -> dict[str, list[str]]:
         """The benchmarked clips by dataset (``dataset_of``; "" where it is not known), in
@@ -147,8 +153,13 @@ class BenchResult:
         for r in self.rows:
             if not math.isnan(r.get(metric, math.nan)):
                 values.setdefault((r["clip"], r["engine"]), []).append(r[metric])
-        return {clip: {spec: float(np.mean(values[clip, spec])) if (clip, spec) in values else math.nan
-                       for spec in self.summary} for clip in self.clips}
+        return {
+            clip: {
+                spec: float(np.mean(values[clip, spec])) if (clip, spec) in values else math.nan
+                for spec in self.summary
+            }
+            for clip in self.clips
+        }
 
     def per_clip_markdown(self, metric: str) -> str:
         """A table of ``metric`` with a row per clip (its frame count, then every engine's
@@ -156,7 +167,10 @@ class BenchResult:
         frames = {r["clip"]: r["frames"] for r in self.rows}
         specs = list(self.summary)
         lines = [f"| clip ({metric}) | frames | " + " | ".join(specs) + " |", "|" + "---|" * (len(specs) + 2)]
-        cells = lambda values: " | ".join(format_value(metric, v) for v in values)
+
+        def cells(values) -> str:
+            return " | ".join(format_value(metric, v) for v in values)
+
         for clip, by_engine in self.per_clip(metric).items():
             lines.append(f"| {clip} | {frames.get(clip, 0)} | {cells(by_engine[s] for s in specs)} |")
         lines.append(f"| **mean** | | {cells(self.summary[s].get(metric, math.nan) for s in specs)} |")
@@ -191,11 +205,16 @@ def run_benchmark(
     (too short for a block) is skipped, and a clip an engine refuses (EngineError) is
     left out of that engine's rows; both are recorded with the reason. Raises
     CorruptionApplyError when the corruption fits no clip."""
-    engines = {(e if isinstance(e, str) else e.spec): (registry.create(e) if isinstance(e, str) else e)
-               for e in engine_specs}
-    result = BenchResult(corruption=str(parse_corruption(corruption)), seeds=list(seeds), clips=[],
-                         glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))},
-                         dataset_of=dict(datasets or {}))
+    engines = {
+        (e if isinstance(e, str) else e.spec): (registry.create(e) if isinstance(e, str) else e) for e in engine_specs
+    }
+    result = BenchResult(
+        corruption=str(parse_corruption(corruption)),
+        seeds=list(seeds),
+        clips=[],
+        glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))},
+        dataset_of=dict(datasets or {}),
+    )
     cases: list[tuple[str, Case]] = []
     for clip_id, motion in clips:
         try:
@@ -227,8 +246,7 @@ def run_benchmark(
             except EngineError as err:
                 refused[clip_id] = str(err)
                 continue
-            row = {"engine": spec, "clip": clip_id, "seed": case.seed, "frames": case.truth.n_frames,
-                   "seconds": dt}
+            row = {"engine": spec, "clip": clip_id, "seed": case.seed, "frames": case.truth.n_frames, "seconds": dt}
             row.update(metrics.score(case.truth, cleaned.motion, case.observation.observed))
             result.rows.append(row)
         if refused:

@@ -57,8 +57,8 @@ def joint_position_error_cm(truth: Motion, estimate: Motion) -> np.ndarray:
     world space for the root chain's joints above the body root (a reference node)."""
     _check(truth, estimate)
     root, above = truth.skeleton.body_root, list(truth.skeleton.root_chain[:-1])
-    t = truth.positions - truth.positions[:, root:root + 1]
-    e = estimate.positions - estimate.positions[:, root:root + 1]
+    t = truth.positions - truth.positions[:, root : root + 1]
+    e = estimate.positions - estimate.positions[:, root : root + 1]
     t[:, above], e[:, above] = truth.positions[:, above], estimate.positions[:, above]
     return np.linalg.norm(e - t, axis=2) * truth.skeleton.unit_cm
 
@@ -74,8 +74,9 @@ def root_cm(truth: Motion, estimate: Motion) -> float:
     the trajectory, which the root-aligned scores do not see."""
     _check(truth, estimate)
     root = truth.skeleton.body_root
-    return float(np.mean(np.linalg.norm(estimate.positions[:, root] - truth.positions[:, root], axis=1))
-                 * truth.skeleton.unit_cm)
+    return float(
+        np.mean(np.linalg.norm(estimate.positions[:, root] - truth.positions[:, root], axis=1)) * truth.skeleton.unit_cm
+    )
 
 
 def gap_mpjpe_cm(truth: Motion, estimate: Motion, observed: np.ndarray) -> float:
@@ -120,7 +121,7 @@ def jitter_cm_s3(motion: Motion) -> float:
     if motion.n_frames < 4:
         return float("nan")
     root, body = motion.skeleton.body_root, body_joints(motion.skeleton)
-    p = (motion.positions[:, body] - motion.positions[:, root:root + 1]) * motion.skeleton.unit_cm
+    p = (motion.positions[:, body] - motion.positions[:, root : root + 1]) * motion.skeleton.unit_cm
     jerk = np.diff(p, n=3, axis=0) * motion.fps**3
     return float(np.mean(np.linalg.norm(jerk, axis=2)))
 

@@ -42,8 +42,14 @@ def scoring_corruption(engine: Engine) -> str:
     return "angular:0.5" if "denoise" in engine.info.tasks else "gaps:0.01"
 
 
-def train_engine(engine: Engine, clips: Sequence[tuple[str, Motion]], out: str | Path, *,
-                 test: Sequence[tuple[str, Motion]] = (), datasets: Mapping[str, str] | None = None) -> TrainingRun:
+def train_engine(
+    engine: Engine,
+    clips: Sequence[tuple[str, Motion]],
+    out: str | Path,
+    *,
+    test: Sequence[tuple[str, Motion]] = (),
+    datasets: Mapping[str, str] | None = None,
+) -> TrainingRun:
     """Fit ``engine`` on ``clips`` ((id, clean motion), one skeleton layout), score it on
     ``test`` and save its weights and manifest in ``out``. ``datasets``: each clip's data
     set (default: the first part of its id, ``cmu`` of ``cmu/walk/02_01``). Raises
@@ -60,8 +66,12 @@ def train_engine(engine: Engine, clips: Sequence[tuple[str, Motion]], out: str |
         summary = run_benchmark([engine], corruption, test, seeds=[0]).summary[engine.spec]
         scores = {"corruption": corruption, "split": "test", "seeds": [0], **summary}
     names = sorted({(datasets or {}).get(clip, clip.split("/")[0]) for clip, _ in clips})
-    record = {"clips": [clip for clip, _ in clips], "split": "train", "minutes": round(minutes, 2),
-              "datasets": [{"name": name, "terms": dataset_terms(name)} for name in names]}
+    record = {
+        "clips": [clip for clip, _ in clips],
+        "split": "train",
+        "minutes": round(minutes, 2),
+        "datasets": [{"name": name, "terms": dataset_terms(name)} for name in names],
+    }
     if not math.isnan(peak_mb):
         record["peak_mb"] = round(peak_mb)
     manifest = engine.save(out, {"training": record, "test_scores": scores})

@@ -63,7 +63,11 @@ class CAE(ConvAutoencoderEngine):
     info = EngineInfo(
         name="cae",
         summary="convolutional autoencoder over the pose x time image (Kaufmann 2020); IK back to angles",
-        tasks=TASKS, space="positions", trainable=True, citation=CITATION + ", §3")
+        tasks=TASKS,
+        space="positions",
+        trainable=True,
+        citation=CITATION + ", §3",
+    )
     Params = CAEParams
 
     def build_network(self, n_rows: int):
@@ -78,7 +82,11 @@ class VanillaCAE(ConvAutoencoderEngine):
     info = EngineInfo(
         name="cae-vanilla",
         summary="Kaufmann 2020's Vanilla AE ablation: one strided 3x3 convolution per unit",
-        tasks=TASKS, space="positions", trainable=True, citation=CITATION + ", §4.1 (Vanilla AE)")
+        tasks=TASKS,
+        space="positions",
+        trainable=True,
+        citation=CITATION + ", §4.1 (Vanilla AE)",
+    )
     Params = ImageParams
 
     def build_network(self, n_rows: int):
@@ -93,9 +101,12 @@ class Holden(ConvAutoencoderEngine):
     info = EngineInfo(
         name="holden",
         summary="Holden 2016's motion manifold: 1-D convolution over frames, pooling/unpooling",
-        tasks=TASKS, space="positions", trainable=True,
+        tasks=TASKS,
+        space="positions",
+        trainable=True,
         citation="Holden, Saito, Komura 2016, A Deep Learning Framework for Character Motion Synthesis and "
-                 "Editing, §4 (as the baseline of " + CITATION + ", Table 1)")
+        "Editing, §4 (as the baseline of " + CITATION + ", Table 1)",
+    )
     Params = HoldenParams
 
     def build_network(self, n_rows: int):

@@ -25,8 +25,9 @@ from workbench.data import catalogue, select
 from workbench.metrics import bone_lengths
 
 
-def length_errors_cm(engine_specs: Sequence[str], motions, corruption: str = "none",
-                     seed: int = 0) -> tuple[list[str], np.ndarray, dict[str, np.ndarray]]:
+def length_errors_cm(
+    engine_specs: Sequence[str], motions, corruption: str = "none", seed: int = 0
+) -> tuple[list[str], np.ndarray, dict[str, np.ndarray]]:
     """Bone names (B,), true lengths (B,) averaged over the motions, and per engine the
     raw-output length minus the true length, (frames of all motions, B), in cm."""
     skeleton = motions[0].skeleton

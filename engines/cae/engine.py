@@ -171,13 +171,30 @@ from workbench.core.channels import hole_length, interpolate_gaps
 from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.engine import CleanResult, Engine, EngineError, trained, training
-
 from workbench.engine.signal import bridge_gaps, normalized_gaussian, rewrap_angles
+from workbench.engine.smoothing import (
+    angles_bridge_holes,
+    cv_smooth,
+    ik_reference,
+    measurement_variance,
+    smooth_and_fill,
+    smoothing_ratio,
+)
 from workbench.engine.threads import one_blas_thread
-from workbench.engine.smoothing import (angles_bridge_holes, cv_smooth, ik_reference, measurement_variance, smooth_and_fill,
-                         smoothing_ratio)
-from .representation import (Layout, decode, encode, heading, image_mask, mirror_rows,
-                             pad_time, reverse_time, trajectory, turn_y, wrap)
+
+from .representation import (
+    Layout,
+    decode,
+    encode,
+    heading,
+    image_mask,
+    mirror_rows,
+    pad_time,
+    reverse_time,
+    trajectory,
+    turn_y,
+    wrap,
+)
 
 #: most image columns (views x padded frames) per network call: per column, bigger calls
 #: are slower on these CPUs (2-core AVX2 EPYC, cae: 27 us up to 14k columns, 34-43 us
@@ -273,8 +290,9 @@ class TrainingParams:
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ValueError(f"{name} must be 0 (off) or a positive length in cm, got {getattr(self, name)}")
         if not (np.isfinite(self.output_sigma_frames) and self.output_sigma_frames >= 0):
-            raise ValueError(f"output_sigma_frames must be 0 (off) or a positive number of frames, "
-                             f"got {self.output_sigma_frames}")
+            raise ValueError(
+                f"output_sigma_frames must be 0 (off) or a positive number of frames, got {self.output_sigma_frames}"
+            )
 
 
 class ConvAutoencoderEngine(Engine):
@@ -282,8 +300,13 @@ class ConvAutoencoderEngine(Engine):
     :meth:`build_network`."""
 
     Params = TrainingParams
-    QUICK_FIT = {"epochs": "1", "frames_per_epoch": "512", "window_frames": "64", "batch_size": "4",
-                 "time_scale_pct": "0"}
+    QUICK_FIT = {
+        "epochs": "1",
+        "frames_per_epoch": "512",
+        "window_frames": "64",
+        "batch_size": "4",
+        "time_scale_pct": "0",
+    }
 
     # -- the network ----------------------------------------------------------------
     def build_network(self, n_rows: int):
@@ -314,8 +337,7 @@ class ConvAutoencoderEngine(Engine):
         varies[0] = False
         constant = np.flatnonzero(~varies.any(axis=1))
         constant = constant[constant > 0]
-        maskable = np.array([j for j in range(1, skeleton.n_joints)
-                             if j not in constant and skeleton.has_rotation[j]])
+        maskable = np.array([j for j in range(1, skeleton.n_joints) if j not in constant and skeleton.has_rotation[j]])
         rest = np.zeros(skeleton.n_joints)  # height above the root in the rest pose
         for j, parent in enumerate(skeleton.parents):
             rest[j] = rest[parent] + skeleton.offsets[j, 1] if parent >= 0 else 0.0
@@ -334,12 +356,34 @@ class ConvAutoencoderEngine(Engine):
         # float32 as saved, so a loaded engine computes exactly what the fitted one does
         mean = pool.mean(axis=0).astype(np.float32).astype(float)
         std = np.maximum(pool.std(axis=0), 1e-6).astype(np.float32).astype(float)
-        sampler = WindowSampler(images, mean, std, layout, mirror, maskable, p.window_frames, p.gap_sigma_frames,
-                                p.time_scale_pct, p.body_scale_pct, p.input_noise, p.input_fill,
-                                p.sampling, rng)
+        sampler = WindowSampler(
+            images,
+            mean,
+            std,
+            layout,
+            mirror,
+            maskable,
+            p.window_frames,
+            p.gap_sigma_frames,
+            p.time_scale_pct,
+            p.body_scale_pct,
+            p.input_noise,
+            p.input_fill,
+            p.sampling,
+            rng,
+        )
         batches = max(1, p.frames_per_epoch // (p.batch_size * p.window_frames))
-        log = train(net, sampler, p.epochs, batches, p.batch_size, p.learning_rate, p.curriculum_epochs, p.ema_decay,
-                    desc=f"train {self.info.name}")
+        log = train(
+            net,
+            sampler,
+            p.epochs,
+            batches,
+            p.batch_size,
+            p.learning_rate,
+            p.curriculum_epochs,
+            p.ema_decay,
+            desc=f"train {self.info.name}",
+        )
         self.net_, self.layout_, self.constant_ = net, layout, constant
         self.mean_, self.std_, self.loss_log_ = mean, std, np.array(log)
         self.skeleton_signature_ = skeleton.signature()
@@ -354,18 +398,23 @@ class ConvAutoencoderEngine(Engine):
 
         return {
             **module_arrays(self.net_, "net."),
-            "image.mean": self.mean_.astype(np.float32), "image.std": self.std_.astype(np.float32),
-            "layout.joints": np.array(self.layout_.joints), "layout.source": np.array(self.layout_.source),
-            "layout.parents": np.array(self.layout_.parents), "constant_joints": np.array(self.constant_),
+            "image.mean": self.mean_.astype(np.float32),
+            "image.std": self.std_.astype(np.float32),
+            "layout.joints": np.array(self.layout_.joints),
+            "layout.source": np.array(self.layout_.source),
+            "layout.parents": np.array(self.layout_.parents),
+            "constant_joints": np.array(self.constant_),
             "training.loss_per_epoch": self.loss_log_.astype(np.float32),
         }
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from workbench.engine.torch_support import load_module_arrays
 
-        self.layout_ = Layout(tuple(int(j) for j in arrays["layout.joints"]),
-                              tuple(int(j) for j in arrays["layout.source"]),
-                              tuple(int(j) for j in arrays["layout.parents"]))
+        self.layout_ = Layout(
+            tuple(int(j) for j in arrays["layout.joints"]),
+            tuple(int(j) for j in arrays["layout.source"]),
+            tuple(int(j) for j in arrays["layout.parents"]),
+        )
         self.net_ = self.build_network(self.layout_.n_rows)
         load_module_arrays(self.net_, arrays, "net.")
         self.net_.eval()
@@ -375,8 +424,9 @@ class ConvAutoencoderEngine(Engine):
         self.loss_log_ = arrays["training.loss_per_epoch"].astype(float)
 
     # -- cleaning -------------------------------------------------------------------
-    def complete(self, image: np.ndarray, mask: np.ndarray, mirror: tuple[np.ndarray, np.ndarray] | None = None,
-                 views: int = 1) -> np.ndarray:
+    def complete(
+        self, image: np.ndarray, mask: np.ndarray, mirror: tuple[np.ndarray, np.ndarray] | None = None, views: int = 1
+    ) -> np.ndarray:
         """The network's completion (F, H) of a raw image (F, H) known where ``mask``: the
         mean of the completions of the first ``views`` of :data:`VIEWS`, each mapped back;
         batched, at most :data:`MAX_CALL_COLUMNS` columns a call. ``mirror``: the row permutation and signs of
@@ -401,7 +451,7 @@ class ConvAutoencoderEngine(Engine):
         x = network_input((X - self.mean_) / self.std_, M, self.params.input_fill)
         per_call = max(1, MAX_CALL_COLUMNS // frames)
         with torch_threads(default_threads()), torch.inference_mode():
-            Y = np.concatenate([self.net_(x[i:i + per_call]).numpy() for i in range(0, len(x), per_call)])
+            Y = np.concatenate([self.net_(x[i : i + per_call]).numpy() for i in range(0, len(x), per_call)])
         Y = Y[..., :F].transpose(0, 2, 1) * self.std_ + self.mean_
         total = np.zeros_like(image)
         for y, (_, m, mirrored, reversed_) in zip(Y, batch):
@@ -457,8 +507,9 @@ class ConvAutoencoderEngine(Engine):
                 out = self.blend_short_holes(out, mask)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         short, frames, ref, ref_local = self._ik_reference(observation, bridged, smoothed, P, ref, ref_local)
-        root, angles, translations = inverse_kinematics(skeleton, target, ref, reference_local=ref_local,
-                                                        reference_joints=short, reference_frames=frames)
+        root, angles, translations = inverse_kinematics(
+            skeleton, target, ref, reference_local=ref_local, reference_joints=short, reference_frames=frames
+        )
         solved = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations)
         channels = rewrap_angles(solved.channels, observation)
         if self.params.keep_observed:
@@ -478,15 +529,22 @@ class ConvAutoencoderEngine(Engine):
         holes = missing & (length <= p.short_hole_frames)
         partial = missing & (length <= p.partial_hole_frames) & observation.observed[:, :1] & ~holes
         if partial.any():
-            positions, _ = forward_kinematics(observation.skeleton, channels[:, :3],
-                                              channels[:, 3:].reshape(observation.n_frames, -1, 3))
+            positions, _ = forward_kinematics(
+                observation.skeleton, channels[:, :3], channels[:, 3:].reshape(observation.n_frames, -1, 3)
+            )
             if angles_bridge_holes(observation.skeleton, channels, observation.observed, positions, p.short_lever_cm):
                 holes |= partial
         return holes
 
-    def _ik_reference(self, observation: Observation, bridged: np.ndarray, smoothed: np.ndarray | None,
-                      positions: np.ndarray, ref: np.ndarray,
-                      ref_local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _ik_reference(
+        self,
+        observation: Observation,
+        bridged: np.ndarray,
+        smoothed: np.ndarray | None,
+        positions: np.ndarray,
+        ref: np.ndarray,
+        ref_local: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """What IK keeps of the observation: with ``anchor``
         :func:`workbench.engine.smoothing.ik_reference` (its joints, frames and smoothed reference
         angles, with their local rotations; ``smoothed``: the channels'
@@ -495,9 +553,15 @@ class ConvAutoencoderEngine(Engine):
         skeleton, observed = observation.skeleton, observation.observed
         p = self.params
         if not p.anchor:
-            return short_lever_joints(skeleton, p.short_lever_cm, observed), np.zeros(observed.shape, bool), ref, ref_local
-        ref, short, frames = ik_reference(skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm,
-                                          smoothed)
+            return (
+                short_lever_joints(skeleton, p.short_lever_cm, observed),
+                np.zeros(observed.shape, bool),
+                ref,
+                ref_local,
+            )
+        ref, short, frames = ik_reference(
+            skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed
+        )
         return short, frames, ref, local_rotations(skeleton, ref)
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
@@ -547,8 +611,9 @@ class ConvAutoencoderEngine(Engine):
         out[span, cols] += weight * (fill - rows)
         return out
 
-    def _constrain(self, image: np.ndarray, mask: np.ndarray, constraints: Constraints, ground: np.ndarray,
-                   theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _constrain(
+        self, image: np.ndarray, mask: np.ndarray, constraints: Constraints, ground: np.ndarray, theta: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Image, mask and the constrained entries (F, H), with the constrained positions
         entered as known entries in the body frame of the trajectory (ground (F, 3),
         theta (F,))."""
@@ -556,8 +621,10 @@ class ConvAutoencoderEngine(Engine):
         for joint, (frames, positions) in constraints.items():
             j = self.layout_.source[joint] if 0 <= joint < self.layout_.n_joints else -1
             if j <= 0:
-                raise EngineError(f"engine {self.info.name!r}: cannot constrain joint {joint}; give a non-root "
-                                  f"joint index below {self.layout_.n_joints}")
+                raise EngineError(
+                    f"engine {self.info.name!r}: cannot constrain joint {joint}; give a non-root "
+                    f"joint index below {self.layout_.n_joints}"
+                )
             frames = np.asarray(frames, int)
             positions = np.asarray(positions, float).reshape(len(frames), 3)
             rows = self.layout_.rows(j)
@@ -579,4 +646,3 @@ def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.nd
     smoothed = ground.copy()
     smoothed[:, [0, 2]] = S[:, :2]
     return smoothed, wrap(S[:, 2])
-

@@ -137,8 +137,9 @@ def decode(layout: Layout, image: np.ndarray, ground: np.ndarray, theta: np.ndar
     return ground[:, None] + turn_y(local, theta[:, None])
 
 
-def trajectory(image: np.ndarray, root_known: np.ndarray, ground: np.ndarray,
-               theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def trajectory(
+    image: np.ndarray, root_known: np.ndarray, ground: np.ndarray, theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """The root trajectory for decoding: the observed floor points (F, 3) and headings
     (F,) where ``root_known`` (F,), and across each stretch of unknown frames the path
     integrated from the image's velocity rows, rigidly attached to the observed frame
@@ -222,7 +223,7 @@ def reverse_time(image: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.nd
     negated, the step turned into this frame's heading (frame 0 gets none). Its own
     inverse."""
     out, m = image[::-1].copy(), mask[::-1].copy()
-    nxt = image[:0:-1, -TAIL_ROWS:]                     # original frames F-1 .. 1
+    nxt = image[:0:-1, -TAIL_ROWS:]  # original frames F-1 .. 1
     step = np.zeros((len(nxt), 3))
     step[:, [0, 2]] = nxt[:, :2]
     out[0, -TAIL_ROWS:] = 0.0
@@ -247,4 +248,3 @@ def pad_time(image: np.ndarray, mask: np.ndarray, frames: int) -> tuple[np.ndarr
     out = image[src].copy()
     out[back, -TAIL_ROWS:] *= -1.0
     return out, mask[src]
-

@@ -56,9 +56,9 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from workbench.engine.torch_support import progress
 from workbench.core.channels import interpolate_frames, interpolate_gaps
 from workbench.core.motion import position_unknown
+from workbench.engine.torch_support import progress
 
 from .representation import TAIL_ROWS, Layout, image_mask, pad_time
 
@@ -81,10 +81,23 @@ class WindowSampler:
     captured frame is drawn equally often; images too short for a window are reflected
     at their end (:func:`representation.pad_time`), as at inference."""
 
-    def __init__(self, images: Sequence[np.ndarray], mean: np.ndarray, std: np.ndarray, layout: Layout,
-                 mirror: tuple[np.ndarray, np.ndarray] | None, maskable: np.ndarray, window_frames: int,
-                 gap_sigma_frames: float, time_scale_pct: float, body_scale_pct: float, input_noise: float,
-                 input_fill: str, sampling: str, rng: np.random.Generator) -> None:
+    def __init__(
+        self,
+        images: Sequence[np.ndarray],
+        mean: np.ndarray,
+        std: np.ndarray,
+        layout: Layout,
+        mirror: tuple[np.ndarray, np.ndarray] | None,
+        maskable: np.ndarray,
+        window_frames: int,
+        gap_sigma_frames: float,
+        time_scale_pct: float,
+        body_scale_pct: float,
+        input_noise: float,
+        input_fill: str,
+        sampling: str,
+        rng: np.random.Generator,
+    ) -> None:
         self.max_speed = 1 + time_scale_pct / 100
         span = int(math.ceil((window_frames - 1) * self.max_speed)) + 2
         self.weights = np.array([im.shape[0] if sampling == "frames" else 1 for im in images], float)
@@ -126,7 +139,7 @@ class WindowSampler:
             if block[b]:
                 n = int(np.clip(round(rng.normal(gap_mean, self.sigma)), 1, T - 2))
                 s = int(rng.integers(1, T - n))
-                observed[b, s:s + n] = False
+                observed[b, s : s + n] = False
                 blocks.append((b, s, n))
             else:
                 k = min(int(rng.integers(1, 4)), self.maskable.size)
@@ -137,7 +150,7 @@ class WindowSampler:
                 length = int(rng.integers(5, min(n, 30) + 1))
                 start = s + int(rng.integers(0, n - length + 1))
                 for j in rng.choice(self.layout.joints, size=int(rng.integers(1, 4)), replace=False):
-                    mask[b, start:start + length, self.layout.rows(int(j))] = True
+                    mask[b, start : start + length, self.layout.rows(int(j))] = True
         noisy = X + (self.noise * rng.standard_normal(X.shape)).astype(np.float32) if self.noise > 0 else X
         return X, network_input(noisy, mask, self.fill)
 
@@ -154,8 +167,17 @@ def network_input(X: np.ndarray, mask: np.ndarray, fill: str) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(x.transpose(0, 1, 3, 2)))
 
 
-def train(net: torch.nn.Module, sampler: WindowSampler, epochs: int, batches_per_epoch: int, batch_size: int,
-          learning_rate: float, curriculum_epochs: int, ema_decay: float, desc: str) -> list[float]:
+def train(
+    net: torch.nn.Module,
+    sampler: WindowSampler,
+    epochs: int,
+    batches_per_epoch: int,
+    batch_size: int,
+    learning_rate: float,
+    curriculum_epochs: int,
+    ema_decay: float,
+    desc: str,
+) -> list[float]:
     """Train ``net`` in place; returns the mean L1 loss of every epoch. With ``ema_decay``
     > 0, ``net`` ends with the exponential moving average of its weights over the steps
     (this decay per step) instead of the last step's weights."""

@@ -81,8 +81,12 @@ class WindowEngine(Engine):
     def state_arrays(self) -> dict[str, np.ndarray]:
         from workbench.engine.torch_support import module_arrays
 
-        return {**module_arrays(self.net_, "net."), "norm_mean": self.norm_.mean, "norm_std": self.norm_.std,
-                "loss_history": np.asarray(self.loss_history_, np.float32)}
+        return {
+            **module_arrays(self.net_, "net."),
+            "norm_mean": self.norm_.mean,
+            "norm_std": self.norm_.std,
+            "loss_history": np.asarray(self.loss_history_, np.float32),
+        }
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from workbench.engine.torch_support import load_module_arrays
@@ -126,7 +130,7 @@ class WindowEngine(Engine):
             codes = self.net_.encode(torch.from_numpy(data.inputs))
             values = torch.from_numpy(data.values)  # float64: filters in double precision
             for i in range(0, centres.size, INFERENCE_CHUNK):
-                idx, valid = window_index(centres[i:i + INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
+                idx, valid = window_index(centres[i : i + INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
                 idx_t = torch.from_numpy(idx)
                 pred, diag = self._predict(self.net_, codes[idx_t], values[idx_t], torch.from_numpy(valid))
                 preds.append(pred.double().numpy())
@@ -161,11 +165,24 @@ class WindowEngine(Engine):
             return Corpus.build([(self._frame_data(obs), truth(m)) for obs, m in self._training_pairs(motions, epoch)])
 
         p = self.params
-        self.loss_history_ = np.array(train(
-            net, make_corpus, self._predict, epochs=p.epochs, learning_rate=p.learning_rate,
-            batch_windows=p.batch_windows, run=self.RUN, radius=RADIUS, stride=self.STRIDE, seed=p.seed,
-            missing_only=self.MISSING_ONLY, error_unit=self.norm_.angle_std if self.ERRORS_IN_STDS else None,
-            frame_rms=self.FRAME_RMS_LOSS, desc=self.variant))
+        self.loss_history_ = np.array(
+            train(
+                net,
+                make_corpus,
+                self._predict,
+                epochs=p.epochs,
+                learning_rate=p.learning_rate,
+                batch_windows=p.batch_windows,
+                run=self.RUN,
+                radius=RADIUS,
+                stride=self.STRIDE,
+                seed=p.seed,
+                missing_only=self.MISSING_ONLY,
+                error_unit=self.norm_.angle_std if self.ERRORS_IN_STDS else None,
+                frame_rms=self.FRAME_RMS_LOSS,
+                desc=self.variant,
+            )
+        )
         self.net_ = net.eval()
 
     def retimed(self, motion: Motion, rng: np.random.Generator) -> Motion:

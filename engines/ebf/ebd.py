@@ -51,10 +51,10 @@ from workbench.core.channels import gap_distance, hole_length
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
 from workbench.engine import CleanResult, EngineInfo, trained, training
-
-from workbench.engine.threads import one_blas_thread
 from workbench.engine.signal import rewrap_angles
 from workbench.engine.smoothing import angles_are_quiet, smooth_and_fill
+from workbench.engine.threads import one_blas_thread
+
 from .base import TrainingParams, WindowEngine
 from .features import RADIUS, FrameData
 
@@ -94,8 +94,9 @@ class EBD(WindowEngine):
             if self.blend_frames < 0:
                 raise ValueError(f"blend_frames must be >= 0, got {self.blend_frames}")
             if self.smooth_hole_frames < 0:
-                raise ValueError(f"smooth_hole_frames must be 0 (off) or a number of frames, "
-                                 f"got {self.smooth_hole_frames}")
+                raise ValueError(
+                    f"smooth_hole_frames must be 0 (off) or a number of frames, got {self.smooth_hole_frames}"
+                )
 
     info = EngineInfo(
         name="ebd",
@@ -109,8 +110,15 @@ class EBD(WindowEngine):
     def _build_net(self, n_channels: int):
         from .nets import WindowNet
 
-        return WindowNet(2 * n_channels + 3, n_channels, encoder=True, recurrent=True,
-                         lstm_units=self.params.lstm_units, dropout=self.params.dropout, window=2 * RADIUS + 1)
+        return WindowNet(
+            2 * n_channels + 3,
+            n_channels,
+            encoder=True,
+            recurrent=True,
+            lstm_units=self.params.lstm_units,
+            dropout=self.params.dropout,
+            window=2 * RADIUS + 1,
+        )
 
     def _predict(self, net, windows, values, valid):
         import torch
@@ -144,7 +152,7 @@ class EBD(WindowEngine):
                 F, J = observed.shape
                 n = min(int(rng.uniform(*LONG_GAP_S) * m.fps), F - 2)
                 start = rng.integers(0, F - n + 1)
-                observed[start:start + n, rng.integers(1, J)] = False
+                observed[start : start + n, rng.integers(1, J)] = False
                 pairs.append((Observation(obs.motion, observed), m))
         return pairs
 

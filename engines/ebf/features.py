@@ -15,7 +15,6 @@ import numpy as np
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
-
 from workbench.engine.signal import bridge_gaps
 
 #: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
@@ -26,8 +25,9 @@ VELOCITY_BASELINE = 8
 STD_FLOOR = 1.0
 
 
-def root_angular_velocity_dps(root_angles_deg: np.ndarray, order: str, fps: float,
-                              baseline: int = VELOCITY_BASELINE) -> np.ndarray:
+def root_angular_velocity_dps(
+    root_angles_deg: np.ndarray, order: str, fps: float, baseline: int = VELOCITY_BASELINE
+) -> np.ndarray:
     """(F, 3) angular velocity of the root in its own frame, degrees per second, averaged
     over the last ``baseline`` frames: :func:`rotation_rate_dps` from frame s = max(0, t -
     baseline) to t (0 at frame 0). Invariant to heading; the baseline keeps
@@ -148,8 +148,9 @@ def window_offsets(radius: int = RADIUS, stride: int = 1) -> np.ndarray:
     return stride * np.arange(-radius, radius + 1)
 
 
-def window_index(centres: np.ndarray, n_frames: int, radius: int = RADIUS, stride: int = 1
-                 ) -> tuple[np.ndarray, np.ndarray]:
+def window_index(
+    centres: np.ndarray, n_frames: int, radius: int = RADIUS, stride: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
     """Frame indices (N, L) of the windows around ``centres`` (N,), clamped into the clip
     (edge frames repeat: the padding used for network inputs), and ``valid`` (N, L):
     the window frame exists (only those enter a filter)."""

@@ -46,10 +46,10 @@ import numpy as np
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.corruption import parse_corruption
 from workbench.engine import CleanResult, EngineInfo, trained, training
-
-from workbench.engine.threads import one_blas_thread
 from workbench.engine.signal import rewrap_angles
-from .base import WindowEngine, TrainingParams
+from workbench.engine.threads import one_blas_thread
+
+from .base import TrainingParams, WindowEngine
 from .features import RADIUS
 from .root import clean_root
 
@@ -108,12 +108,22 @@ class FilterEngine(WindowEngine):
 
         L, C = 2 * RADIUS + 1, n_channels
         n_out = (L if self.free else 1) * C + (C if self.bias else 0)
-        net = WindowNet(C + 3, n_out, encoder=self.ENCODER, recurrent=self.RECURRENT,
-                        lstm_units=getattr(self.params, "lstm_units", 0), dropout=self.params.dropout, window=L)
+        net = WindowNet(
+            C + 3,
+            n_out,
+            encoder=self.ENCODER,
+            recurrent=self.RECURRENT,
+            lstm_units=getattr(self.params, "lstm_units", 0),
+            dropout=self.params.dropout,
+            window=L,
+        )
         with torch.no_grad():  # start from a Gaussian of INITIAL_SIGMA_FRAMES everywhere
             d = torch.arange(-RADIUS, RADIUS + 1, dtype=torch.float32)
-            start = (-0.5 * d**2 / INITIAL_SIGMA_FRAMES**2).repeat_interleave(C) if self.free else \
-                torch.full((C,), math.log(INITIAL_SIGMA_FRAMES))
+            start = (
+                (-0.5 * d**2 / INITIAL_SIGMA_FRAMES**2).repeat_interleave(C)
+                if self.free
+                else torch.full((C,), math.log(INITIAL_SIGMA_FRAMES))
+            )
             net.head[-1].bias[: start.numel()] = start
         return net
 
@@ -167,8 +177,9 @@ class FilterEngine(WindowEngine):
             diagnostics[key] = full
         if self.params.root_sigma_frames > 0 and data.n_frames:
             skeleton = observation.skeleton
-            Y[:, :6], sigma = clean_root(data.X[:, :6], self.params.root_sigma_frames, skeleton.unit_cm,
-                                         skeleton.rotation_order(0))
+            Y[:, :6], sigma = clean_root(
+                data.X[:, :6], self.params.root_sigma_frames, skeleton.unit_cm, skeleton.rotation_order(0)
+            )
             diagnostics["filter_sigma_frames"][:, :6] = np.repeat(sigma, 3, axis=1)
         return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation)), diagnostics)
 

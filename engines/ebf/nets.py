@@ -66,8 +66,9 @@ class WindowNet(nn.Module):
     inputs out with probability ``dropout`` in training.
     """
 
-    def __init__(self, n_in: int, n_out: int, *, encoder: bool, recurrent: bool, lstm_units: int,
-                 dropout: float, window: int) -> None:
+    def __init__(
+        self, n_in: int, n_out: int, *, encoder: bool, recurrent: bool, lstm_units: int, dropout: float, window: int
+    ) -> None:
         super().__init__()
         self.encoder = mlp((n_in,) + ENCODER_WIDTHS, tanh_last=True) if encoder else nn.Identity()
         self.code_width = width = ENCODER_WIDTHS[-1] if encoder else n_in
@@ -108,8 +109,9 @@ def gaussian_logits(sigma: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:
     return -0.5 * offsets[None, :, None] ** 2 / sigma[:, None, :] ** 2
 
 
-def filter_windows(logits: torch.Tensor, values: torch.Tensor, valid: torch.Tensor
-                   ) -> tuple[torch.Tensor, torch.Tensor]:
+def filter_windows(
+    logits: torch.Tensor, values: torch.Tensor, valid: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
     """Weighted circular mean over each window: ``softmax(logits)`` over the window
     frames that exist (``valid`` (B, L); weights renormalised over them), applied to the
     angles ``values`` (B, L, C) in degrees. Returns the filtered centre frames (B, C),

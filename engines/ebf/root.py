@@ -65,8 +65,9 @@ def _median_of_numbers(a: np.ndarray) -> np.ndarray:
     return np.nan_to_num(0.5 * (s[rows, (k - 1) // 2] + s[rows, k // 2])).reshape(a.shape[:-1])
 
 
-def smooth_root(frames: np.ndarray, rough: np.ndarray, valid: np.ndarray, centre_euler: np.ndarray,
-                max_sigma: float, order: str) -> tuple[np.ndarray, np.ndarray]:
+def smooth_root(
+    frames: np.ndarray, rough: np.ndarray, valid: np.ndarray, centre_euler: np.ndarray, max_sigma: float, order: str
+) -> tuple[np.ndarray, np.ndarray]:
     """Root channels (N, 6), position in file units and Euler angles in degrees in
     ``order`` (the triple nearest ``centre_euler`` (N, 3)), at the centres of N windows
     of L :func:`root_frames` (N, L, 12), given their :func:`roughness` (N, L, 2, 3) (NaN
@@ -94,18 +95,20 @@ def smooth_root(frames: np.ndarray, rough: np.ndarray, valid: np.ndarray, centre
     return out, sigma
 
 
-def clean_root(root: np.ndarray, max_sigma: float, unit_cm: float, order: str, chunk: int = 4096
-               ) -> tuple[np.ndarray, np.ndarray]:
+def clean_root(
+    root: np.ndarray, max_sigma: float, unit_cm: float, order: str, chunk: int = 4096
+) -> tuple[np.ndarray, np.ndarray]:
     """A take's root channels (F, 6) (position in file units, Euler angles in degrees in
     ``order``, no gaps) smoothed in every frame's window; and the filter widths (F, 2)."""
     F = root.shape[0]
     frames = root_frames(root, order)
     rough = np.full((F + 1, 2, 3), np.nan)  # the last row: for window frames outside the take
-    rough[1:F - 1] = roughness(frames, unit_cm)
+    rough[1 : F - 1] = roughness(frames, unit_cm)
     out, sigma = np.empty_like(root), np.empty((F, 2))
     for i in range(0, F, chunk):
         centres = np.arange(i, min(i + chunk, F))
         idx, valid = window_index(centres, F, RADIUS)
-        out[centres], sigma[centres] = smooth_root(frames[idx], rough[np.where(valid, idx, F)], valid,
-                                                   root[centres, 3:], max_sigma, order)
+        out[centres], sigma[centres] = smooth_root(
+            frames[idx], rough[np.where(valid, idx, F)], valid, root[centres, 3:], max_sigma, order
+        )
     return out, sigma

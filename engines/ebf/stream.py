@@ -72,15 +72,16 @@ class FilterStream:
         self._window = Window(
             2 * RADIUS + 1,
             code=((self.engine.net_.code_width,), np.float32),  # the frame's code
-            values=((C,), float),                # unwrapped, anchored angles (degrees)
-            root=((12,), float),                 # the root (:func:`.root.root_frames`)
-            rough=((2, 3), float),               # root roughness (NaN: not known)
-            valid=((), bool))                    # the window frame exists
-        self._pending: deque = deque()    # raw rows (D,) not yet output
+            values=((C,), float),  # unwrapped, anchored angles (degrees)
+            root=((12,), float),  # the root (:func:`.root.root_frames`)
+            rough=((2, 3), float),  # root roughness (NaN: not known)
+            valid=((), bool),
+        )  # the window frame exists
+        self._pending: deque = deque()  # raw rows (D,) not yet output
         self._recent: deque = deque(maxlen=VELOCITY_BASELINE + 1)  # the last frames' roots (12,)
         self._last_raw: np.ndarray | None = None
-        self._correction = None           # whole turns added by unwrapping, per channel
-        self._anchor = None               # whole turns that anchor each channel
+        self._correction = None  # whole turns added by unwrapping, per channel
+        self._anchor = None  # whole turns that anchor each channel
 
     def _unwrap(self, angles: np.ndarray) -> np.ndarray:
         """One step of ``numpy.unwrap(period=360)`` (same arithmetic), then the anchor
@@ -114,8 +115,9 @@ class FilterStream:
         values = self._unwrap(row[self.layout.columns])
         root = root_frames(row[None, :6], self.layout.root_order)[0]
         self._recent.append(root)
-        velocity = rotation_rate_dps(self._recent[0][3:].reshape(3, 3), root[3:].reshape(3, 3),
-                                     len(self._recent) - 1, self.fps)
+        velocity = rotation_rate_dps(
+            self._recent[0][3:].reshape(3, 3), root[3:].reshape(3, 3), len(self._recent) - 1, self.fps
+        )
         if self.engine.params.root_sigma_frames > 0 and len(self._recent) >= 3:  # the previous frame's roughness
             self._window.last()["rough"][:] = roughness(np.stack(list(self._recent)[-3:]), self.unit_cm)[0]
         features = self.engine.norm_(np.concatenate([values, velocity]))
@@ -149,15 +151,25 @@ class FilterStream:
 
         w = self._window.arrays
         with torch.inference_mode():
-            pred, _ = self.engine._predict(self.engine.net_, torch.from_numpy(w["code"])[None],
-                                           torch.from_numpy(w["values"])[None], torch.from_numpy(w["valid"])[None])
+            pred, _ = self.engine._predict(
+                self.engine.net_,
+                torch.from_numpy(w["code"])[None],
+                torch.from_numpy(w["values"])[None],
+                torch.from_numpy(w["valid"])[None],
+            )
         pred = pred[0].double().numpy()
         row = self._pending.popleft().copy()
         cols = self.layout.columns
         row[cols] = pred + 360.0 * np.round((row[cols] - pred) / 360.0)  # back on the input's branch
         if self.engine.params.root_sigma_frames > 0:
-            root, _ = smooth_root(w["root"][None], w["rough"][None], w["valid"][None], row[None, 3:6],
-                                  self.engine.params.root_sigma_frames, self.layout.root_order)
+            root, _ = smooth_root(
+                w["root"][None],
+                w["rough"][None],
+                w["valid"][None],
+                row[None, 3:6],
+                self.engine.params.root_sigma_frames,
+                self.layout.root_order,
+            )
             row[:6] = root[0]
         self._window.pop()
         return row

@@ -93,9 +93,9 @@ def gather(corpus: Corpus, starts: np.ndarray, run: int, radius: int, stride: in
     offsets = window_offsets(radius, stride)
     start, length, local = corpus.start[starts, None], corpus.length[starts, None], corpus.local[starts, None]
     span = local + np.arange(-margin, run + margin)[None, :]
-    frame_rows = start + np.clip(span, 0, length - 1)                        # (S, run + 2 margin)
-    centre = local + np.arange(run)[None, :]                                 # (S, run)
-    win = centre[:, :, None] + offsets[None, None, :]                        # (S, run, L)
+    frame_rows = start + np.clip(span, 0, length - 1)  # (S, run + 2 margin)
+    centre = local + np.arange(run)[None, :]  # (S, run)
+    win = centre[:, :, None] + offsets[None, None, :]  # (S, run, L)
     valid = (win >= 0) & (win < length[:, :, None])
     win_rows = start[:, :, None] + np.clip(win, 0, length[:, :, None] - 1)
     centre_rows = (start + centre).reshape(-1)
@@ -112,8 +112,8 @@ def gather(corpus: Corpus, starts: np.ndarray, run: int, radius: int, stride: in
 
 def window_codes(net, batch: Batch) -> torch.Tensor:
     """(B, L, E) windows of codes: each run's frames encoded once, then cut into windows."""
-    codes = net.encode(batch.frames)                                         # (S, run + 2m, E)
-    windows = codes[:, batch.positions]                                      # (S, run, L, E)
+    codes = net.encode(batch.frames)  # (S, run + 2m, E)
+    windows = codes[:, batch.positions]  # (S, run, L, E)
     return windows.reshape(-1, windows.shape[2], windows.shape[3])
 
 
@@ -122,10 +122,23 @@ def wrapped_error_deg(pred: torch.Tensor, truth: torch.Tensor) -> torch.Tensor:
     return torch.remainder(pred - truth + 180.0, 360.0) - 180.0
 
 
-def train(net: torch.nn.Module, make_corpus: Callable[[int], Corpus], predict: Callable, *,
-          epochs: int, learning_rate: float, batch_windows: int, run: int, radius: int, stride: int,
-          seed: int, missing_only: bool, error_unit: np.ndarray | None, frame_rms: bool,
-          desc: str) -> list[float]:
+def train(
+    net: torch.nn.Module,
+    make_corpus: Callable[[int], Corpus],
+    predict: Callable,
+    *,
+    epochs: int,
+    learning_rate: float,
+    batch_windows: int,
+    run: int,
+    radius: int,
+    stride: int,
+    seed: int,
+    missing_only: bool,
+    error_unit: np.ndarray | None,
+    frame_rms: bool,
+    desc: str,
+) -> list[float]:
     """Train ``net`` in place; returns each epoch's training error: the mean per-frame
     RMS error (``frame_rms``) or the RMS error over all entries the loss covers.
 
@@ -161,7 +174,7 @@ def train(net: torch.nn.Module, make_corpus: Callable[[int], Corpus], predict: C
         starts = corpus.run_starts(run, rng)
         err_sum, count = 0.0, 0.0
         for i in range(0, starts.size, segments):
-            batch = gather(corpus, starts[i:i + segments], run, radius, stride)
+            batch = gather(corpus, starts[i : i + segments], run, radius, stride)
             pred, _ = predict(net, window_codes(net, batch), batch.values, batch.valid)
             sq = (wrapped_error_deg(pred, batch.truth) / unit) ** 2
             weight = batch.missing.float() if missing_only else torch.ones_like(sq)
@@ -189,8 +202,10 @@ def train(net: torch.nn.Module, make_corpus: Callable[[int], Corpus], predict: C
             if step % 20 == 0:
                 bar.set_postfix(epoch=epoch + 1, error=f"{_error(err_sum, count, frame_rms):.3f}")
         history.append(_error(err_sum, count, frame_rms))
-        bar.write(f"{desc} epoch {epoch + 1}/{epochs}: training error {history[-1]:.3f} "
-                  f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+        bar.write(
+            f"{desc} epoch {epoch + 1}/{epochs}: training error {history[-1]:.3f} ({time.perf_counter() - t0:.0f} s)",
+            file=sys.stderr,
+        )
     bar.close()
     net.eval()
     return history

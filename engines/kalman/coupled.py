@@ -23,8 +23,9 @@ import numpy as np
 from scipy.linalg import solveh_banded
 
 
-def coupled_smooth(Y: np.ndarray, observed: np.ndarray, r: np.ndarray, A1: np.ndarray, A2: np.ndarray,
-                   c: np.ndarray, Qinv: np.ndarray) -> np.ndarray:
+def coupled_smooth(
+    Y: np.ndarray, observed: np.ndarray, r: np.ndarray, A1: np.ndarray, A2: np.ndarray, c: np.ndarray, Qinv: np.ndarray
+) -> np.ndarray:
     """Smoothed (G, F, b) trajectories of G groups of b channels.
 
     Y, observed: (G, F, b) measurements and mask; r: (G, b) measurement variances;
@@ -35,30 +36,30 @@ def coupled_smooth(Y: np.ndarray, observed: np.ndarray, r: np.ndarray, A1: np.nd
     if F < 3:
         raise ValueError("coupled_smooth needs at least 3 frames")
     eye = np.broadcast_to(np.eye(b), (G, b, b))
-    K = [-A2, -A1, eye]                                   # residual_t = sum_i K_i x_{t-1+i} - c
+    K = [-A2, -A1, eye]  # residual_t = sum_i K_i x_{t-1+i} - c
     KtQ = [np.swapaxes(k, 1, 2) @ Qinv for k in K]
-    blocks = np.zeros((3, G, F, b, b))                    # lag 0, 1, 2: H[frame + lag, frame]
+    blocks = np.zeros((3, G, F, b, b))  # lag 0, 1, 2: H[frame + lag, frame]
     rhs = np.where(observed, Y, 0.0) / r[:, None, :]
     n = F - 2
     for i in range(3):
         for j in range(i, 3):
-            M = KtQ[j] @ K[i]                             # block (frame t-1+j, frame t-1+i)
-            blocks[j - i][:, i:i + n] += M[:, None]
-        rhs[:, i:i + n] += (KtQ[i] @ c[:, :, None])[:, None, :, 0]
+            M = KtQ[j] @ K[i]  # block (frame t-1+j, frame t-1+i)
+            blocks[j - i][:, i : i + n] += M[:, None]
+        rhs[:, i : i + n] += (KtQ[i] @ c[:, :, None])[:, None, :, 0]
     diag = np.arange(b)
     blocks[0][:, :, diag, diag] += observed / r[:, None, :]
     kd = 3 * b - 1
     ab = np.zeros((kd + 1, G, F, b))
     for lag in range(3):
         B = blocks[lag]
-        for ci in range(b):          # column channel (earlier frame)
-            for cj in range(b):      # row channel (frame + lag)
+        for ci in range(b):  # column channel (earlier frame)
+            for cj in range(b):  # row channel (frame + lag)
                 k = lag * b + cj - ci
                 if k < 0 or (lag == 0 and cj < ci):
                     continue
                 if lag == 0:
                     ab[k, :, :, ci] = B[:, :, cj, ci]
                 else:
-                    ab[k, :, :F - lag, ci] = B[:, :F - lag, cj, ci]
+                    ab[k, :, : F - lag, ci] = B[:, : F - lag, cj, ci]
     x = solveh_banded(ab.reshape(kd + 1, -1), rhs.reshape(-1), lower=True, check_finite=False)
     return x.reshape(G, F, b)

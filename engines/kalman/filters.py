@@ -37,13 +37,11 @@ import numpy as np
 
 from workbench.core.motion import Observation, length_columns
 from workbench.engine import CleanResult, Engine, EngineInfo
-
 from workbench.engine.signal import bridge_gaps, prepare
 from workbench.engine.smoothing import cv_smooth, estimate_noise, measurement_variance, smoothing_ratio
 
 
-def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_angles: float = 0.0,
-                    lengths=(0, 1, 2)):
+def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_angles: float = 0.0, lengths=(0, 1, 2)):
     """Kalman-smooth a bridged channel matrix ``X`` (F, D) (unwrapped angles, gaps
     interpolated linearly) with its observed ``mask`` (F, D); constant channels stay.
     Returns the smoothed matrix and the ``(q, r)`` (D,) variances used. ``r_angles`` /
@@ -51,7 +49,7 @@ def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_an
     ``lengths`` columns (the root position and any translations, in file units:
     :func:`workbench.core.motion.length_columns`)."""
     Y = X.copy()
-    const = X.max(axis=0) == X.min(axis=0)     # linear bridging stays within the observed range
+    const = X.max(axis=0) == X.min(axis=0)  # linear bridging stays within the observed range
     active = np.flatnonzero(~const)
     D = X.shape[1]
     q = np.zeros(D)
@@ -92,14 +90,19 @@ class Kalman(Engine):
         summary="constant-velocity Kalman filter + RTS smoother per channel; noise estimated from the data",
         tasks=frozenset({"denoise", "fill"}),
         citation="Lou and Chai 2010 §4.2 (general Kalman filter baseline); "
-                 "Welch and Bishop 2001, An introduction to the Kalman filter; "
-                 "Rauch, Tung and Striebel 1965",
+        "Welch and Bishop 2001, An introduction to the Kalman filter; "
+        "Rauch, Tung and Striebel 1965",
     )
 
     def clean(self, observation: Observation, /) -> CleanResult:
         p = prepare(observation)
-        Y, _ = smooth_channels(p.bridged, p.mask, self.params.measurement_noise_deg2,
-                               self.params.process_noise_deg2_per_frame4, length_columns(observation.skeleton))
+        Y, _ = smooth_channels(
+            p.bridged,
+            p.mask,
+            self.params.measurement_noise_deg2,
+            self.params.process_noise_deg2_per_frame4,
+            length_columns(observation.skeleton),
+        )
         return CleanResult(observation.motion.with_channels(p.output(Y)))
 
     @staticmethod

@@ -59,8 +59,8 @@ import numpy as np
 from workbench.core.channels import unwrap_deg
 from workbench.core.motion import Motion, Observation, joint_angle_columns
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
-
 from workbench.engine.signal import prepare
+
 from .coupled import coupled_smooth
 from .filters import smooth_channels
 
@@ -113,12 +113,12 @@ class LearnedKalman(Engine):
         super().__init__(params)
         self.joints_: np.ndarray | None = None
         self.fps_: float | None = None
-        self.mean_: np.ndarray | None = None       # (G, 3) mean pose of the modelled joints
-        self.A1_: np.ndarray | None = None         # (G, 3, 3)
-        self.A2_: np.ndarray | None = None         # (G, 3, 3)
-        self.offset_: np.ndarray | None = None     # (G, 3)
-        self.Q_fit_: np.ndarray | None = None      # (G, 3, 3) residual covariance of the fitted dynamics
-        self.Q_cv_: np.ndarray | None = None       # (G, 3, 3) covariance of the accelerations
+        self.mean_: np.ndarray | None = None  # (G, 3) mean pose of the modelled joints
+        self.A1_: np.ndarray | None = None  # (G, 3, 3)
+        self.A2_: np.ndarray | None = None  # (G, 3, 3)
+        self.offset_: np.ndarray | None = None  # (G, 3)
+        self.Q_fit_: np.ndarray | None = None  # (G, 3, 3) residual covariance of the fitted dynamics
+        self.Q_cv_: np.ndarray | None = None  # (G, 3, 3) covariance of the accelerations
         self.n_frames_: int = 0
 
     # -- training -------------------------------------------------------------------
@@ -130,16 +130,16 @@ class LearnedKalman(Engine):
         clips = [unwrap_deg(m.channels[:, cols]).reshape(m.n_frames, G, 3) for m in motions if m.n_frames >= 3]
         if not clips:
             raise EngineError("engine 'kalman-learned': the training motions need at least 3 frames each")
-        mean = np.concatenate(clips).mean(axis=0)                                   # (G, 3)
+        mean = np.concatenate(clips).mean(axis=0)  # (G, 3)
         reg = np.concatenate([np.concatenate([x[1:-1] - mean, x[1:-1] - x[:-2]], axis=2) for x in clips])
-        acc = np.concatenate([x[2:] - 2.0 * x[1:-1] + x[:-2] for x in clips])        # (N, G, 3)
+        acc = np.concatenate([x[2:] - 2.0 * x[1:-1] + x[:-2] for x in clips])  # (N, G, 3)
         N = acc.shape[0]
         A1, A2 = np.zeros((G, 3, 3)), np.zeros((G, 3, 3))
         offset, Q_fit = np.zeros((G, 3)), np.zeros((G, 3, 3))
         Q_cv = np.einsum("ngi,ngj->gij", acc, acc) / N
         eye = np.eye(3)
         for g in range(G):
-            R, T = reg[:, g], acc[:, g]                                              # (N, 6), (N, 3)
+            R, T = reg[:, g], acc[:, g]  # (N, 6), (N, 3)
             live = np.concatenate([R[:, :3].std(axis=0) > 1e-9] * 2)
             B = np.zeros((3, 6))
             if live.any():
@@ -163,9 +163,15 @@ class LearnedKalman(Engine):
     def state_arrays(self) -> dict[str, np.ndarray]:
         self.require_fitted()
         return {
-            "joints": self.joints_, "fps": np.array(self.fps_), "mean": self.mean_,
-            "A1": self.A1_, "A2": self.A2_, "offset": self.offset_,
-            "Q_fit": self.Q_fit_, "Q_cv": self.Q_cv_, "n_frames": np.array(self.n_frames_),
+            "joints": self.joints_,
+            "fps": np.array(self.fps_),
+            "mean": self.mean_,
+            "A1": self.A1_,
+            "A2": self.A2_,
+            "offset": self.offset_,
+            "Q_fit": self.Q_fit_,
+            "Q_cv": self.Q_cv_,
+            "n_frames": np.array(self.n_frames_),
         }
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
@@ -178,11 +184,19 @@ class LearnedKalman(Engine):
         except KeyError as err:
             raise EngineError(f"engine 'kalman-learned': the weights lack {err}; retrain the engine") from None
         G = self.joints_.size
-        for name, shape in (("mean", (G, 3)), ("A1", (G, 3, 3)), ("A2", (G, 3, 3)), ("offset", (G, 3)),
-                            ("Q_fit", (G, 3, 3)), ("Q_cv", (G, 3, 3))):
+        for name, shape in (
+            ("mean", (G, 3)),
+            ("A1", (G, 3, 3)),
+            ("A2", (G, 3, 3)),
+            ("offset", (G, 3)),
+            ("Q_fit", (G, 3, 3)),
+            ("Q_cv", (G, 3, 3)),
+        ):
             if np.shape(arrays[name]) != shape:
-                raise EngineError(f"engine 'kalman-learned': weights array {name!r} has shape "
-                                  f"{np.shape(arrays[name])}, expected {shape}; retrain the engine")
+                raise EngineError(
+                    f"engine 'kalman-learned': weights array {name!r} has shape "
+                    f"{np.shape(arrays[name])}, expected {shape}; retrain the engine"
+                )
 
     # -- cleaning -------------------------------------------------------------------
     def clean(self, observation: Observation, /) -> CleanResult:
@@ -190,18 +204,20 @@ class LearnedKalman(Engine):
         self.check_skeleton(observation.skeleton)
         motion = observation.motion
         if self.params.learned_dynamics and abs(motion.fps - self.fps_) > 1e-6:
-            raise EngineError(f"engine 'kalman-learned' learnt its dynamics at {self.fps_:g} fps; "
-                              f"this take is {motion.fps:g} fps (use learned_dynamics=false or retrain)")
+            raise EngineError(
+                f"engine 'kalman-learned' learnt its dynamics at {self.fps_:g} fps; "
+                f"this take is {motion.fps:g} fps (use learned_dynamics=false or retrain)"
+            )
         p = prepare(observation)
-        Y, (q, r) = smooth_channels(p.bridged, p.mask)           # kalman for every channel
+        Y, (q, r) = smooth_channels(p.bridged, p.mask)  # kalman for every channel
         F = motion.n_frames
-        obs_j = observation.observed[:, self.joints_]             # (F, G)
+        obs_j = observation.observed[:, self.joints_]  # (F, G)
         use = obs_j.sum(axis=0) >= 3
         if F >= 3 and use.any():
             g_idx = np.flatnonzero(use)
-            cols = joint_angle_columns(self.joints_[g_idx]).reshape(-1, 3)     # (g, 3)
+            cols = joint_angle_columns(self.joints_[g_idx]).reshape(-1, 3)  # (g, 3)
             qg, rg = q[cols], r[cols]
-            live = qg > 0                                         # not constant in the observation
+            live = qg > 0  # not constant in the observation
             if self.params.learned_dynamics:
                 A1, A2, c, Q = self.A1_[g_idx], self.A2_[g_idx], self.offset_[g_idx], self.Q_fit_[g_idx]
             else:
@@ -216,9 +232,9 @@ class LearnedKalman(Engine):
             s = np.sqrt(np.where(live, qg, 1.0))
             Qinv = np.linalg.inv(C) / s[:, :, None] / s[:, None, :]
             rg = np.where(live, rg, 1.0)
-            Xg = p.bridged[:, cols].transpose(1, 0, 2)            # (g, F, 3)
+            Xg = p.bridged[:, cols].transpose(1, 0, 2)  # (g, F, 3)
             Mg = np.repeat(obs_j[:, g_idx].T[:, :, None], 3, axis=2)
-            Z = coupled_smooth(Xg, Mg, rg, A1, A2, c, Qinv)      # (g, F, 3)
+            Z = coupled_smooth(Xg, Mg, rg, A1, A2, c, Qinv)  # (g, F, 3)
             Z = Z.transpose(1, 0, 2)
             keep = live.ravel()
             flat_cols = cols.ravel()[keep]

@@ -25,7 +25,7 @@ def window_blocks(X: np.ndarray, window: int, chunk: int = CHUNK_WINDOWS) -> Ite
     windows of ``X`` (F, L); each block is a (n, L * window) array, channel-major."""
     views = sliding_window_view(X, window, axis=0)  # (S, L, M), no copy
     for s0 in range(0, views.shape[0], chunk):
-        block = views[s0:s0 + chunk]
+        block = views[s0 : s0 + chunk]
         yield s0, block.reshape(block.shape[0], -1)
 
 

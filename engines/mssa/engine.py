@@ -16,9 +16,9 @@ from workbench.core.kinematics import inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, trained
-
 from workbench.engine.signal import bridge_gaps
 from workbench.engine.smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
+
 from .bases import filter_bases, lag_covariance
 from .solver import WindowProjector, robust_filter
 
@@ -157,8 +157,10 @@ class MSSA(Engine):
             if not (math.isfinite(self.refit_prior_weight) and self.refit_prior_weight >= 0):
                 raise ValueError(f"refit_prior_weight must be a number >= 0, got {self.refit_prior_weight}")
             if (self.smoothness > 0 or self.refit_prior_weight > 0) and self.solver != "cg":
-                raise ValueError('smoothness > 0 and refit_prior_weight > 0 need solver="cg"; set both to 0 '
-                                 'for the alternating solver')
+                raise ValueError(
+                    'smoothness > 0 and refit_prior_weight > 0 need solver="cg"; set both to 0 '
+                    "for the alternating solver"
+                )
             if self.start_median_frames < 1:
                 raise ValueError(f"start_median_frames must be at least 1, got {self.start_median_frames}")
             for name in ("short_lever_cm", "angle_lever_cm"):
@@ -200,10 +202,8 @@ class MSSA(Engine):
         scale = np.maximum(spread[keep], floor)
         mean = np.concatenate([X for _, X in parts]).mean(axis=0)[keep]
         normalised = [X[:, keep] / scale for X in centred]
-        bases, spectrum = filter_bases(lag_covariance(normalised, self.params.window_frames),
-                                       self.params.energy_kept)
-        return SpaceModel(candidates[keep], candidates[~keep], mean, scale,
-                          bases.astype(np.float32), spectrum)
+        bases, spectrum = filter_bases(lag_covariance(normalised, self.params.window_frames), self.params.energy_kept)
+        return SpaceModel(candidates[keep], candidates[~keep], mean, scale, bases.astype(np.float32), spectrum)
 
     def fit(self, motions: Sequence[Motion], /) -> "MSSA":
         """Learn the filter bases of both spaces from clean motions of one skeleton layout."""
@@ -238,14 +238,25 @@ class MSSA(Engine):
         p = self.params
         seen_at = observed[:, cols]
         sigma2 = measurement_variance(u, seen_at)
-        var = sigma2 + p.noise_floor ** 2
+        var = sigma2 + p.noise_floor**2
         weight, welsch = (1.0 / var, p.welsch_p_sigma * np.sqrt(var)) if p.adaptive else (1.0, p.welsch_p_std)
         mu = None
         if p.smoothness > 0:
             mu = 0.5 * p.smoothness * weight * smoothing_ratio(u, sigma2, seen_at.mean(axis=0))
-        result = robust_filter(u, seen_at * weight, model.projector, p.prior_weight, welsch, p.robust,
-                               p.tol_rel_cost, p.max_iterations, p.solver, mu,
-                               p.refit_prior_weight, p.start_median_frames)
+        result = robust_filter(
+            u,
+            seen_at * weight,
+            model.projector,
+            p.prior_weight,
+            welsch,
+            p.robust,
+            p.tol_rel_cost,
+            p.max_iterations,
+            p.solver,
+            mu,
+            p.refit_prior_weight,
+            p.start_median_frames,
+        )
         out = np.array(Y)
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre
@@ -259,10 +270,17 @@ class MSSA(Engine):
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
             world = out.reshape(F, -1, 3) + root_joint[:, None]
-            reference, short, frames = ik_reference(skeleton, X, observation.observed, Y.reshape(F, -1, 3),
-                                                    self.params.short_lever_cm, self.params.angle_lever_cm)
-            root, angles, translations = inverse_kinematics(skeleton, world, reference, reference_joints=short,
-                                                            reference_frames=frames)
+            reference, short, frames = ik_reference(
+                skeleton,
+                X,
+                observation.observed,
+                Y.reshape(F, -1, 3),
+                self.params.short_lever_cm,
+                self.params.angle_lever_cm,
+            )
+            root, angles, translations = inverse_kinematics(
+                skeleton, world, reference, reference_joints=short, reference_frames=frames
+            )
             out = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations).channels
         out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
         motion = observation.motion.with_channels(out)
@@ -270,15 +288,19 @@ class MSSA(Engine):
 
     # -- fitted state -----------------------------------------------------------------
     def state_arrays(self) -> dict[str, np.ndarray]:
-        return {f"{space}_{f.name}": getattr(model, f.name)
-                for space, model in self.models_.items() for f in dataclasses.fields(SpaceModel)}
+        return {
+            f"{space}_{f.name}": getattr(model, f.name)
+            for space, model in self.models_.items()
+            for f in dataclasses.fields(SpaceModel)
+        }
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         fields = [f.name for f in dataclasses.fields(SpaceModel)]
         keys = {space: {name: f"{space}_{name}" for name in fields} for space in SPACES}
         missing = sorted(k for names in keys.values() for k in names.values() if k not in arrays)
         if missing:
-            raise EngineError(f"mssa: these weights lack {', '.join(missing)} (an older format); "
-                              "retrain them")
-        self.models_ = {space: SpaceModel(**{name: np.asarray(arrays[key]) for name, key in names.items()})
-                        for space, names in keys.items()}
+            raise EngineError(f"mssa: these weights lack {', '.join(missing)} (an older format); retrain them")
+        self.models_ = {
+            space: SpaceModel(**{name: np.asarray(arrays[key]) for name, key in names.items()})
+            for space, names in keys.items()
+        }

@@ -79,7 +79,7 @@ class WindowProjector:
         for k in range(1, M):
             n = M - k  # frames of the window inside the clip
             head[:n, :, :n, :] += P[k:, :, k:, :]
-            tail[M - 1 - n:, :, M - 1 - n:, :] += P[:n, :, :n, :]
+            tail[M - 1 - n :, :, M - 1 - n :, :] += P[:n, :, :n, :]
         # float32 like the taps: at 70 channels each map is (19 x 70)^2 entries, read whole
         # on every application (14 MB in float64; half the projector's time besides the
         # taps' product on these CPUs)
@@ -93,10 +93,10 @@ class WindowProjector:
         lags = sliding_window_view(padded, 2 * M - 1, axis=0).transpose(0, 2, 1)  # (F, 2M-1, L)
         added = np.empty((F, L))
         for f0 in range(0, F, CHUNK_FRAMES):
-            block = lags[f0:f0 + CHUNK_FRAMES]
-            added[f0:f0 + len(block)] = block.astype(np.float32).reshape(len(block), -1) @ self.taps
-        added[:M - 1] -= (self.head @ z[:M - 1].astype(np.float32).ravel()).reshape(M - 1, L)
-        added[F - M + 1:] -= (self.tail @ z[F - M + 1:].astype(np.float32).ravel()).reshape(M - 1, L)
+            block = lags[f0 : f0 + CHUNK_FRAMES]
+            added[f0 : f0 + len(block)] = block.astype(np.float32).reshape(len(block), -1) @ self.taps
+        added[: M - 1] -= (self.head @ z[: M - 1].astype(np.float32).ravel()).reshape(M - 1, L)
+        added[F - M + 1 :] -= (self.tail @ z[F - M + 1 :].astype(np.float32).ravel()).reshape(M - 1, L)
         prior = float(np.sum(coverage(F, M)[:, None] * np.square(z)) - np.sum(z * added))
         return added, max(prior, 0.0)
 
@@ -178,8 +178,9 @@ def robust_filter(
         def cost(z: np.ndarray) -> float:  # data and smoothness terms
             return data_cost(z) + float(np.sum(mu * np.square(np.diff(z, n=2, axis=0))))
 
-        return _cg_filter(y, alpha, z, projector, lam, mu, n, weights, cost, tol, max_iterations, F, p2, robust,
-                          refit_weight)
+        return _cg_filter(
+            y, alpha, z, projector, lam, mu, n, weights, cost, tol, max_iterations, F, p2, robust, refit_weight
+        )
     while True:
         added, prior = projector(z)
         costs.append(data_cost(z) + lam * prior)
@@ -210,8 +211,9 @@ def second_difference_gram(v: np.ndarray) -> np.ndarray:
     return out
 
 
-def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_iterations, F, p2, robust,
-               refit_weight):
+def _cg_filter(
+    y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_iterations, F, p2, robust, refit_weight
+):
     """``robust_filter`` with ``method="cg"`` (see there); ``data_cost`` includes the
     smoothness term of weights ``mu`` (L,)."""
     M, L = projector.window, y.shape[1]
@@ -227,6 +229,7 @@ def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_
         from ``z`` to a relative residual of ``CG_TOL`` (at most ``CG_STEPS`` steps)."""
         diagonal = w + 2.0 * lam * n * (1.0 - g0) + 1e-12
         if band is None:
+
             def precond(v):
                 return v / diagonal
         else:  # exact for the data and smoothness terms: banded Cholesky of every channel
@@ -244,7 +247,7 @@ def _cg_filter(y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_
         r = w * y - apply(z)
         d = precond(r)
         rz = float(np.sum(r * d))
-        target = CG_TOL ** 2 * float(np.sum(np.square(w * y))) + 1e-30
+        target = CG_TOL**2 * float(np.sum(np.square(w * y))) + 1e-30
         for _ in range(CG_STEPS):
             if float(np.sum(r * r)) <= target:
                 break

@@ -34,7 +34,7 @@ def rgb(colour: str) -> np.ndarray:
 def pixel(image: np.ndarray, xy) -> np.ndarray:
     """The median colour of the 3x3 pixels around (x, y)."""
     x, y = int(round(xy[0])), int(round(xy[1]))
-    return np.median(image[y - 1:y + 2, x - 1:x + 2, :3].reshape(-1, 3), axis=0)
+    return np.median(image[y - 1 : y + 2, x - 1 : x + 2, :3].reshape(-1, 3), axis=0)
 
 
 def assert_colour(image: np.ndarray, xy, colour, tol: float = 12, what: str = "") -> None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from app_helpers import FRAME, FRAMES, settle
 
 from workbench import registry
@@ -43,8 +42,7 @@ class Weights(Engine):
     """Bridges gaps and reports made-up robust data weights (F, C): every 7th entry an
     outlier (0.02), the rest 1."""
 
-    info = EngineInfo(name="test-weights", summary="test: bridge gaps, report data weights",
-                      tasks=frozenset({"fill"}))
+    info = EngineInfo(name="test-weights", summary="test: bridge gaps, report data weights", tasks=frozenset({"fill"}))
 
     def clean(self, observation: Observation, /) -> CleanResult:
         motion = observation.bridged()

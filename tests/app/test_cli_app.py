@@ -43,8 +43,23 @@ def test_gui_stops_on_a_bad_corruption_spec(capsys):
 def test_report_writes_a_png_and_a_pdf(tmp_path):
     for name in ("report.png", "report.pdf"):
         out = tmp_path / name
-        assert cli.main(["report", DEFAULT_CLIP, "--engine", "identity", "--engine", "test-widths",
-                         "--frame", "30", "-o", str(out)]) == 0
+        assert (
+            cli.main(
+                [
+                    "report",
+                    DEFAULT_CLIP,
+                    "--engine",
+                    "identity",
+                    "--engine",
+                    "test-widths",
+                    "--frame",
+                    "30",
+                    "-o",
+                    str(out),
+                ]
+            )
+            == 0
+        )
         head = out.read_bytes()[:8]
         assert head == PNG if name.endswith(".png") else head.startswith(b"%PDF")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.pdf", "report.png"], "no temporary files left"
@@ -65,16 +80,31 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
 
     take = tmp_path / "walk.bvh"
     write_bvh(take, tiny_walk)
-    code = ("import sys\nfrom workbench.app.main import make_screenshots\n"
-            "make_screenshots(sys.argv[1], source=sys.argv[2], frame=60, specs=['identity'])\n")
+    code = (
+        "import sys\nfrom workbench.app.main import make_screenshots\n"
+        "make_screenshots(sys.argv[1], source=sys.argv[2], frame=60, specs=['identity'])\n"
+    )
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    run = subprocess.run([sys.executable, "-c", code, str(tmp_path / "shots"), str(take)], env=env,
-                         capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path / "shots"), str(take)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     names = sorted(p.name for p in (tmp_path / "shots").iterdir())
     studio = ["studio.png"] if any(c.id == STUDIO_CLIP for c in clips) else []  # a Bandai take by its id
-    assert names == ["compare.png", "default.png", "heatmap.png", "joint.png", "outliers.png", "recorded.png",
-                     "report.png", *studio]
+    assert names == [
+        "compare.png",
+        "default.png",
+        "heatmap.png",
+        "joint.png",
+        "outliers.png",
+        "recorded.png",
+        "report.png",
+        *studio,
+    ]
     assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
     assert "Traceback" not in run.stderr
 

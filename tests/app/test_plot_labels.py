@@ -9,8 +9,10 @@ from workbench.plots.timeline import wrap_label
 def test_long_legend_labels_wrap_at_spec_separators_and_short_ones_stay():
     assert wrap_label("noisy (RMS)") == "noisy (RMS)"
     assert wrap_label("mssa:space=positions (RMS)") == "mssa:space=positions\n(RMS)"
-    assert wrap_label("ebd>ebf:positions=true,root_sigma_frames=0 (RMS)") == \
-        "ebd>ebf:positions=true,\nroot_sigma_frames=0\n(RMS)"
+    assert (
+        wrap_label("ebd>ebf:positions=true,root_sigma_frames=0 (RMS)")
+        == "ebd>ebf:positions=true,\nroot_sigma_frames=0\n(RMS)"
+    )
     assert wrap_label("x" * 30) == "x" * 30  # nowhere to break: whole
 
 

@@ -52,8 +52,14 @@ def test_scene_matches_reference(take, runs):
     panes = scene_panes(take, [r.spec for r in runs], {r.spec: r for r in runs}, compare=True)
     plotter = new_plotter(len(panes), (900, 360))
     try:
-        scene = SkeletonScene(plotter, panes, take.motion.skeleton, take.root, take.error_scale_cm(),
-                              selected=(take.motion.skeleton.index("LeftFoot"),))
+        scene = SkeletonScene(
+            plotter,
+            panes,
+            take.motion.skeleton,
+            take.root,
+            take.error_scale_cm(),
+            selected=(take.motion.skeleton.index("LeftFoot"),),
+        )
         scene.set_frame(FRAME)
         image = np.asarray(plotter.screenshot(return_img=True))
     finally:

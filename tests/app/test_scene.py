@@ -45,8 +45,9 @@ def test_joints_are_drawn_where_the_camera_projects_them_in_their_error_colour(s
     head = names.index("Head")
     clim = take.error_scale_cm()
     assert_colour(img, joint_xy(scene, 2, head), TRUTH, what="truth pane Head")
-    assert_colour(img, joint_xy(scene, 0, head), error_colour(take.noisy.errors_cm[FRAME, head], clim),
-                  what="noisy pane Head")
+    assert_colour(
+        img, joint_xy(scene, 0, head), error_colour(take.noisy.errors_cm[FRAME, head], clim), what="noisy pane Head"
+    )
     foot = names.index("LeftToeBase")  # far off in the noisy take: the top of the scale
     assert take.noisy.errors_cm[FRAME, foot] > clim[1]
     assert_colour(img, joint_xy(scene, 0, foot), error_colour(clim[1], clim), what="noisy pane LeftToeBase")

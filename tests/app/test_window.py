@@ -97,7 +97,7 @@ def test_scrubbing_moves_the_time_cursor_without_redrawing(window, qtbot):
     _, y = ax.transAxes.transform((0, 0.5))
     img = np.asarray(canvas.buffer_rgba())
     row = int(img.shape[0] - y)
-    near = img[row, int(x) - 2:int(x) + 3, :3].astype(int)
+    near = img[row, int(x) - 2 : int(x) + 3, :3].astype(int)
     assert (np.abs(near - rgb(CURSOR)).max(axis=1) < 40).any(), "the red cursor is drawn at frame 90"
 
 
@@ -186,10 +186,9 @@ def test_an_engine_error_shows_in_the_window_not_on_the_console(window, qtbot, c
 
 
 def test_a_take_without_ground_truth_says_so_and_plots_how_far_each_engine_moved_it(window, qtbot, clean_take):
-    from workbench.metrics import joint_position_error_cm
-
-    from workbench.plots.style import MOVED_LABEL
     from workbench.app.window import ErrorScale
+    from workbench.metrics import joint_position_error_cm
+    from workbench.plots.style import MOVED_LABEL
 
     window.session.set_specs(["identity", "gaussian"], "gaussian")
     window.session.set_take(clean_take)
@@ -201,8 +200,12 @@ def test_a_take_without_ground_truth_says_so_and_plots_how_far_each_engine_moved
     assert scale.figure.axes[0].get_xlabel() == MOVED_LABEL
     j = head(clean_take)
     moved_head = joint_position_error_cm(clean_take.observation.motion, window.session.runs["gaussian"].track.motion)
-    assert_colour(panes_image(window), joint_xy(window, 1, j),
-                  error_colour(moved_head[FRAME, j], clean_take.error_scale_cm()), what="cleaned Head")
+    assert_colour(
+        panes_image(window),
+        joint_xy(window, 1, j),
+        error_colour(moved_head[FRAME, j], clean_take.error_scale_cm()),
+        what="cleaned Head",
+    )
     window.session.set_compare(True)  # a line per engine
     settle(qtbot, window)
     ax = window.plots.canvases[0].figure.axes[0]
@@ -267,8 +270,7 @@ def test_save_writes_the_highlighted_engines_cleaned_take_as_bvh(window, qtbot, 
     assert panel.save.isEnabled()
     out = tmp_path / "cleaned.bvh"
     asked = []
-    monkeypatch.setattr(QFileDialog, "getSaveFileName",
-                        lambda *args: (asked.append(args[2]), (str(out), ""))[1])
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *args: (asked.append(args[2]), (str(out), ""))[1])
     qtbot.keyClick(window.focusWidget(), Qt.Key_S, Qt.ControlModifier)
     assert asked == ["35_31_120_frames_test-widths.bvh"]  # the take's name and the engine's, safe characters
     saved, cleaned = read_bvh(out), s.runs["test-widths"].track.motion
@@ -299,7 +301,7 @@ def test_the_parameter_panel_keeps_a_trained_engines_weights_folder(window, qtbo
     s.set_specs(["identity", spec], spec)
     settle(qtbot, window)
     assert isinstance(s.runs[spec], EngineRun)
-    (name, fields), = panel.edits
+    ((name, fields),) = panel.edits
     assert name == "mssa" and fields["weights"].text() == str(folder)
     fields["prior_weight"].setText("2")
     panel._apply_params()

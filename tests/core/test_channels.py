@@ -22,9 +22,9 @@ def test_retime_plays_faster_and_slower_by_linear_interpolation():
 
 def test_gap_distance_and_hole_length_count_frames_of_each_gap():
     missing = np.zeros((10, 3), bool)
-    missing[2:7, 0] = True      # a gap inside the clip
-    missing[:3, 1] = True       # a gap at the start
-    missing[:, 2] = True        # never observed
+    missing[2:7, 0] = True  # a gap inside the clip
+    missing[:3, 1] = True  # a gap at the start
+    missing[:, 2] = True  # never observed
     d = gap_distance(missing)
     assert d[:, 0].tolist() == [0, 0, 1, 2, 3, 2, 1, 0, 0, 0]
     assert d[:, 1].tolist() == [3, 2, 1, 0, 0, 0, 0, 0, 0, 0]
@@ -63,7 +63,7 @@ def test_linear_gap_filling_of_scattered_masks_matches_np_interp():
         observed[:, 1] = False
         observed[F // 2, 1] = True
         observed[:, 2] = True
-        observed[F // 3 + 1:, 3] = False
+        observed[F // 3 + 1 :, 3] = False
         X[~observed] = np.nan
         out = interpolate_gaps(X, observed)
         t = np.arange(F)
@@ -78,9 +78,9 @@ def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
     """A channel turning slowly through +-180 degrees; one sample 179.5 degrees off
     (wrapped), with a gap after it. np.unwrap follows the outlier and the rest of the
     take lands a whole turn away; the robust rule keeps it on its branch."""
-    truth = np.linspace(150.0, 230.0, 60)[:, None]                    # (60, 1), continuous
-    X = (truth + 180.0) % 360.0 - 180.0                               # wrapped to [-180, 180)
-    X[30] = (X[30] - 179.5 + 180.0) % 360.0 - 180.0                   # the outlier
+    truth = np.linspace(150.0, 230.0, 60)[:, None]  # (60, 1), continuous
+    X = (truth + 180.0) % 360.0 - 180.0  # wrapped to [-180, 180)
+    X[30] = (X[30] - 179.5 + 180.0) % 360.0 - 180.0  # the outlier
     observed = np.ones_like(X, bool)
     observed[40:45] = False
     plain = unwrap_deg(np.where(observed, X, np.nan), observed)
@@ -89,5 +89,5 @@ def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
     assert np.allclose(np.abs(plain[after] - truth[after]), 360.0)
     assert np.allclose(robust[after] - truth[after], 0.0)
     assert np.all(np.isnan(robust[~observed]))
-    clean = (truth + 180.0) % 360.0 - 180.0                           # without the outlier: as np.unwrap
+    clean = (truth + 180.0) % 360.0 - 180.0  # without the outlier: as np.unwrap
     assert np.array_equal(unwrap_deg(clean, robust=True), np.unwrap(clean, period=360.0, axis=0))

@@ -74,8 +74,10 @@ def test_precomputed_local_rotations_give_the_same_fk_and_ik(walk):
     P, R = forward_kinematics(walk.skeleton, walk.root_positions, walk.angles_deg, local=local)
     np.testing.assert_array_equal(P, walk.positions)
     noisy = P + np.random.default_rng(0).normal(0.0, 0.3, P.shape)
-    for a, b in zip(inverse_kinematics(walk.skeleton, noisy, walk.angles_deg, reference_local=local),
-                    inverse_kinematics(walk.skeleton, noisy, walk.angles_deg)):
+    for a, b in zip(
+        inverse_kinematics(walk.skeleton, noisy, walk.angles_deg, reference_local=local),
+        inverse_kinematics(walk.skeleton, noisy, walk.angles_deg),
+    ):
         np.testing.assert_array_equal(a, b)
 
 
@@ -122,8 +124,10 @@ def test_reference_frames_keep_the_reference_there_and_join_the_aim_without_a_ju
     assert step[48:101].max() < 2.0 * step[:48].max()
     everywhere = np.zeros_like(frames)
     everywhere[:, foot] = True
-    np.testing.assert_array_equal(inverse_kinematics(sk, walk.positions, ref, reference_frames=everywhere)[1],
-                                  inverse_kinematics(sk, walk.positions, ref, reference_joints=[foot])[1])
+    np.testing.assert_array_equal(
+        inverse_kinematics(sk, walk.positions, ref, reference_frames=everywhere)[1],
+        inverse_kinematics(sk, walk.positions, ref, reference_joints=[foot])[1],
+    )
 
 
 def test_ik_without_reference_reaches_the_positions(walk, kick):

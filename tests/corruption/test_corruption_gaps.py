@@ -40,7 +40,7 @@ def test_gaps_mask_is_the_union_of_the_events(walk):
     frames, joints, lengths = Gaps(0.02, 8, 20).events(Work(walk), random_stream(seed, 0, "gaps"))
     expect = np.ones((F, J), bool)
     for f, j, n in zip(frames, joints, lengths):
-        expect[f:f + n, j] = False
+        expect[f : f + n, j] = False
     assert np.array_equal(obs.observed, expect)
     assert obs.observed[:, 0].all()  # never the root
     assert lengths.max() <= 20
@@ -90,9 +90,9 @@ def test_block_length_and_placement(walk, n):
         assert np.all(np.diff(missing_frames) == 1)  # one block
         s = missing_frames[0]
         assert 1 <= s and s + n <= F - 1  # an observed frame on each side
-        assert not obs.observed[s:s + n].any()  # all joints, root too
-        assert obs.observed[:s].all() and obs.observed[s + n:].all()
-        assert np.isnan(obs.motion.root_positions[s:s + n]).all()
+        assert not obs.observed[s : s + n].any()  # all joints, root too
+        assert obs.observed[:s].all() and obs.observed[s + n :].all()
+        assert np.isnan(obs.motion.root_positions[s : s + n]).all()
         _check_nan_matches_mask(obs)
 
 

@@ -91,7 +91,7 @@ def test_bias_is_constant_over_time(clip):
     live = std > 0
     z = d[:, cols][:, live] / (k * std[live])  # offset + N(0, 1), in units of K std
     F = z.shape[0]
-    halves = z[: F // 2].mean(axis=0), z[F // 2:].mean(axis=0)
+    halves = z[: F // 2].mean(axis=0), z[F // 2 :].mean(axis=0)
     # constant offset: the two halves agree to the noise of a mean (1 / sqrt(F / 2))
     assert np.all(np.abs(halves[0] - halves[1]) < 5 * np.sqrt(4 / F))
     offsets = z.mean(axis=0)
@@ -162,8 +162,19 @@ def test_noise_models_leave_root_and_mask_alone(walk, text):
 
 
 def test_zero_level_is_identity(walk):
-    for text in ("angular:0", "uniform:0", "bias:0", "sine:0", "spatial:0", "spatial-ends:0,0", "outliers:0",
-                 "gaps:0", "block:0", "joints:0", "drop:0"):
+    for text in (
+        "angular:0",
+        "uniform:0",
+        "bias:0",
+        "sine:0",
+        "spatial:0",
+        "spatial-ends:0,0",
+        "outliers:0",
+        "gaps:0",
+        "block:0",
+        "joints:0",
+        "drop:0",
+    ):
         obs = parse_corruption(text).apply(walk, seed=1)
         assert obs.observed.all(), text
         assert np.array_equal(obs.motion.channels, walk.channels), text

@@ -73,6 +73,7 @@ def test_end_joints_found_on_both_skeletons(walk, daz):
 
 def test_end_joint_name_rule():
     from workbench.corruption import END_JOINT_PATTERN as pat
+
     for ok in ("LeftHand", "rFoot", "left_wrist", "R_Ankle", "hand_l", "Foot.R", "RIGHTHAND"):
         assert pat.match(ok), ok
     for bad in ("LeftHandIndex1", "LeftFootEnd", "Hand", "lThumb1", "LeftToeBase", "Handle"):
@@ -100,8 +101,9 @@ def test_spatial_ends_runs_on_the_daz_skeleton(daz):
 
 def test_spatial_ends_needs_wrists_and_ankles(walk):
     sk = walk.skeleton
-    renamed = Skeleton(tuple(f"joint{j}" for j in range(sk.n_joints)), sk.parents, sk.offsets, sk.channels,
-                       sk.end_sites, sk.unit_cm)
+    renamed = Skeleton(
+        tuple(f"joint{j}" for j in range(sk.n_joints)), sk.parents, sk.offsets, sk.channels, sk.end_sites, sk.unit_cm
+    )
     clip = walk.slice(0, 10).replace(skeleton=renamed)
     with pytest.raises(CorruptionApplyError, match="spatial-ends.*wrist or ankle"):
         parse_corruption("spatial-ends:0.5,0.1").apply(clip)

@@ -50,8 +50,19 @@ EXAMPLES = {
     "angular:0.5+angular:0.5": "angular:0.5+angular:0.5",
 }
 
-ALL_SPECS = ["angular:0.5", "uniform:0.5", "bias:0.5", "sine:0.5", "spatial:0.5", "spatial-ends:0.5,0.1",
-             "outliers:0.05", "gaps:0.05", "block:30", "joints:3", "drop:0.1"]
+ALL_SPECS = [
+    "angular:0.5",
+    "uniform:0.5",
+    "bias:0.5",
+    "sine:0.5",
+    "spatial:0.5",
+    "spatial-ends:0.5,0.1",
+    "outliers:0.05",
+    "gaps:0.05",
+    "block:30",
+    "joints:3",
+    "drop:0.1",
+]
 
 
 @pytest.mark.parametrize("text, canonical", EXAMPLES.items())
@@ -134,7 +145,7 @@ def test_generated_specs_round_trip(parts):
     spec = parse_corruption(text)
     assert [type(m) for m in spec.models] == [cls for _, cls, _ in parts]
     for model, (_, cls, values) in zip(spec.models, parts):
-        full = values + [p.default for p in cls.params[len(values):]]
+        full = values + [p.default for p in cls.params[len(values) :]]
         assert list(model.values()) == [v if v is None or isinstance(v, Seconds) else float(v) for v in full]
     canonical = str(spec)
     assert parse_corruption(canonical) == spec
@@ -144,33 +155,37 @@ def test_generated_specs_round_trip(parts):
 
 # -- errors ------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("text, words", [
-    ("angualr:0.5", ["unknown", "angualr", "angular:K", "gaps:P[,MEAN[,MAX]]", "drop:P"]),
-    ("angular", ["angular", "1 parameter", "got 0"]),
-    ("angular:0.5,1", ["angular", "got 2"]),
-    ("spatial-ends:0.5", ["spatial-ends", "2 parameters", "got 1"]),
-    ("gaps:0.1,1,2,3", ["gaps", "1 to 3", "got 4"]),
-    ("angular:abc", ["angular", "K", "'abc'"]),
-    ("angular:-1", ["angular", "K", ">= 0", "-1"]),
-    ("spatial:-0.5", ["spatial", "S", "-0.5"]),
-    ("angular:nan", ["angular", "nan"]),
-    ("bias:inf", ["bias", "inf"]),
-    ("gaps:1.5", ["gaps", "probability", "1.5"]),
-    ("drop:-0.1", ["drop", "probability"]),
-    ("outliers:2", ["outliers", "probability"]),
-    ("gaps:0.1,0.5", ["gaps", "MEAN", ">= 1"]),
-    ("gaps:0.1,12,0", ["gaps", "MAX"]),
-    ("gaps:0.1,12,2.5", ["gaps", "MAX", "whole"]),
-    ("block:1.5", ["block", "N", "whole"]),
-    ("block:2x", ["block", "N", "seconds, as in 2s", "'2x'"]),
-    ("block:-1s", ["block", "N", ">= 0 seconds", "-1s"]),
-    ("gaps:0.1,0s", ["gaps", "MEAN", "> 0 seconds"]),
-    ("angular:2s", ["angular", "K", "'2s'"]),
-    ("joints:-1", ["joints", "N"]),
-    ("angular:0.5++drop:0.1", ["empty"]),
-    ("+angular:0.5", ["empty"]),
-    ("none+drop:0.1", ["none"]),
-])
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("angualr:0.5", ["unknown", "angualr", "angular:K", "gaps:P[,MEAN[,MAX]]", "drop:P"]),
+        ("angular", ["angular", "1 parameter", "got 0"]),
+        ("angular:0.5,1", ["angular", "got 2"]),
+        ("spatial-ends:0.5", ["spatial-ends", "2 parameters", "got 1"]),
+        ("gaps:0.1,1,2,3", ["gaps", "1 to 3", "got 4"]),
+        ("angular:abc", ["angular", "K", "'abc'"]),
+        ("angular:-1", ["angular", "K", ">= 0", "-1"]),
+        ("spatial:-0.5", ["spatial", "S", "-0.5"]),
+        ("angular:nan", ["angular", "nan"]),
+        ("bias:inf", ["bias", "inf"]),
+        ("gaps:1.5", ["gaps", "probability", "1.5"]),
+        ("drop:-0.1", ["drop", "probability"]),
+        ("outliers:2", ["outliers", "probability"]),
+        ("gaps:0.1,0.5", ["gaps", "MEAN", ">= 1"]),
+        ("gaps:0.1,12,0", ["gaps", "MAX"]),
+        ("gaps:0.1,12,2.5", ["gaps", "MAX", "whole"]),
+        ("block:1.5", ["block", "N", "whole"]),
+        ("block:2x", ["block", "N", "seconds, as in 2s", "'2x'"]),
+        ("block:-1s", ["block", "N", ">= 0 seconds", "-1s"]),
+        ("gaps:0.1,0s", ["gaps", "MEAN", "> 0 seconds"]),
+        ("angular:2s", ["angular", "K", "'2s'"]),
+        ("joints:-1", ["joints", "N"]),
+        ("angular:0.5++drop:0.1", ["empty"]),
+        ("+angular:0.5", ["empty"]),
+        ("none+drop:0.1", ["none"]),
+    ],
+)
 def test_bad_specs(text, words):
     with pytest.raises(CorruptionSpecError) as info:
         parse_corruption(text)
@@ -216,9 +231,11 @@ def test_non_finite_input_is_refused(walk):
 
 # -- determinism, purity, independence ---------------------------------------------------
 
+
 def _same(a: Observation, b: Observation) -> bool:
-    return np.array_equal(a.observed, b.observed) and np.array_equal(a.motion.channels, b.motion.channels,
-                                                                     equal_nan=True)
+    return np.array_equal(a.observed, b.observed) and np.array_equal(
+        a.motion.channels, b.motion.channels, equal_nan=True
+    )
 
 
 @pytest.mark.parametrize("text", ALL_SPECS + ["angular:0.5+gaps:0.02+spatial:0.3"])
@@ -251,6 +268,7 @@ def test_stream_is_seed_position_and_name(walk):
     obs = parse_corruption("drop:0.1+angular:0.5").apply(walk, seed=5)
     work = Work(walk)
     from workbench.corruption import Angular
+
     Angular(0.5).corrupt(work, random_stream(5, 1, "angular"))
     ok = obs.channel_observed
     assert np.array_equal(obs.motion.channels[ok], work.channels[ok])
@@ -274,9 +292,11 @@ def test_make_case(walk):
 
 
 def test_import_is_light():
-    code = ("import sys, workbench.corruption\n"
-            "heavy = [m for m in ('torch', 'matplotlib', 'pyvista', 'pyvistaqt', 'PySide6') if m in sys.modules]\n"
-            "print(','.join(heavy))\n")
+    code = (
+        "import sys, workbench.corruption\n"
+        "heavy = [m for m in ('torch', 'matplotlib', 'pyvista', 'pyvistaqt', 'PySide6') if m in sys.modules]\n"
+        "print(','.join(heavy))\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "", f"importing workbench.corruption imported {out.stdout.strip()}"
 

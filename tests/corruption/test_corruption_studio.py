@@ -54,7 +54,8 @@ def test_a_span_in_seconds_is_the_same_time_at_30_and_120_fps(studio_take, walk)
         obs = parse_corruption("block:0.5s").apply(take, seed=0)
         assert (~obs.observed.all(axis=1)).sum() == fps // 2
         _, _, lengths = Gaps(0.05, parse_corruption("gaps:0.05,0.2s").models[0].mean).events(
-            Work(take), random_stream(0, 0, "gaps"))
+            Work(take), random_stream(0, 0, "gaps")
+        )
         assert lengths.mean() == pytest.approx(0.2 * fps, rel=0.15)
     fixed = parse_corruption("block:10,1s").apply(studio_take, seed=0)
     assert np.flatnonzero(~fixed.observed[:, 5])[0] == 30  # START in seconds too

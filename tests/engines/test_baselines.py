@@ -16,8 +16,8 @@ from workbench.registry import create
 from workbench.testing.conformance import check_engine
 
 BASELINES = ["gaussian", "gaussian:sigma_ms=125", "lerp", "spline", "butterworth", "kalman", "lerp>gaussian"]
-TRAIN = ["walk/02_01", "run/09_01", "jump/02_04"]      # training split (subjects 02, 09)
-HELD_OUT = ["walk/16_21", "run/35_24", "jog/16_35"]    # test split (subjects 16, 35)
+TRAIN = ["walk/02_01", "run/09_01", "jump/02_04"]  # training split (subjects 02, 09)
+HELD_OUT = ["walk/16_21", "run/35_24", "jog/16_35"]  # test split (subjects 16, 35)
 
 
 # -- data -----------------------------------------------------------------------------
@@ -59,7 +59,7 @@ def with_gaps(motion: Motion, seed: int = 1) -> Observation:
     obs = np.ones((motion.n_frames, motion.skeleton.n_joints), bool)
     for j in (3, 12, 25):
         s = int(rng.integers(10, motion.n_frames - 50))
-        obs[s:s + 40, j] = False
+        obs[s : s + 40, j] = False
     obs[rng.random(obs.shape) < 0.02] = False
     obs[:, 0] = True
     return Observation(motion, obs)
@@ -68,7 +68,7 @@ def with_gaps(motion: Motion, seed: int = 1) -> Observation:
 def angle_rms(a: Motion, b: Motion) -> float:
     cols = angle_columns(a.skeleton)
     d = (a.channels[:, cols] - b.channels[:, cols] + 180.0) % 360.0 - 180.0
-    return float(np.sqrt(np.mean(d ** 2)))
+    return float(np.sqrt(np.mean(d**2)))
 
 
 def rts_reference(Y, observed, r, A1, A2, c, Q):
@@ -136,19 +136,30 @@ def test_denoisers_reduce_angle_error(spec, clip):
 
 
 def test_spec_round_trip():
-    for spec in BASELINES + ["gaussian:sigma_ms=125.0", "butterworth:cutoff_hz=8.0,order=2",
-                             "kalman:measurement_noise_deg2=4.0,process_noise_deg2_per_frame4=0.01",
-                             "kalman-learned:correlation_shrinkage=0.25,learned_dynamics=True",
-                             "lerp>gaussian:sigma_ms=125.0"]:
+    for spec in BASELINES + [
+        "gaussian:sigma_ms=125.0",
+        "butterworth:cutoff_hz=8.0,order=2",
+        "kalman:measurement_noise_deg2=4.0,process_noise_deg2_per_frame4=0.01",
+        "kalman-learned:correlation_shrinkage=0.25,learned_dynamics=True",
+        "lerp>gaussian:sigma_ms=125.0",
+    ]:
         e = create(spec, pretrained=False)
         assert create(e.spec, pretrained=False).spec == e.spec
     assert create("gaussian").params.sigma_ms == 58.0
     assert create("lerp>gaussian:sigma_ms=58").spec == "lerp>gaussian"
 
 
-@pytest.mark.parametrize("spec", ["gaussian:sigma_ms=0", "gaussian:sigma_ms=-3", "butterworth:cutoff_hz=-1",
-                                  "butterworth:order=0", "kalman:measurement_noise_deg2=-1",
-                                  "kalman-learned:correlation_shrinkage=2"])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        "gaussian:sigma_ms=0",
+        "gaussian:sigma_ms=-3",
+        "butterworth:cutoff_hz=-1",
+        "butterworth:order=0",
+        "kalman:measurement_noise_deg2=-1",
+        "kalman-learned:correlation_shrinkage=2",
+    ],
+)
 def test_bad_parameters_are_engine_errors(spec):
     with pytest.raises(EngineError):
         create(spec, pretrained=False)
@@ -166,7 +177,7 @@ def test_interpolators_keep_observed_and_fill_with_the_interpolant(spec, kind, c
     c = 3 + 3 * j + 1
     t = np.arange(clip.n_frames)
     o = obs.observed[:, j]
-    assert np.abs(np.diff(X[o, c])).max() < 180.0     # no wrapping in this channel
+    assert np.abs(np.diff(X[o, c])).max() < 180.0  # no wrapping in this channel
     if kind == "linear":
         expected = np.interp(t, t[o], X[o, c])
     else:
@@ -180,8 +191,8 @@ def test_cubic_gap_filling_matches_column_by_column_splines():
     rng = np.random.default_rng(0)
     X = np.cumsum(rng.normal(size=(200, 9)), axis=0)
     obs = rng.random(X.shape) > 0.3
-    obs[:, 1] = obs[:, 2] = obs[:, 0]      # a shared mask, as for a joint's three angles
-    obs[:197, 5] = False                   # 3 observations: linear
+    obs[:, 1] = obs[:, 2] = obs[:, 0]  # a shared mask, as for a joint's three angles
+    obs[:197, 5] = False  # 3 observations: linear
     out = interpolate_gaps(X, obs, "cubic")
     t = np.arange(200)
     for c in range(9):
@@ -202,7 +213,7 @@ def test_unwrap_deg_matches_numpy_unwrap():
     Xn = np.where(obs, X, np.nan)
     ours = unwrap_deg(Xn, obs)
     ff = np.array(Xn)
-    for c in range(8):          # reference: forward fill then np.unwrap
+    for c in range(8):  # reference: forward fill then np.unwrap
         o = obs[:, c]
         idx = np.maximum.accumulate(np.where(o, np.arange(300), -1))
         idx[idx < 0] = np.argmax(o)
@@ -240,10 +251,10 @@ def test_gaussian_constant_with_holes_stays_constant(clip):
     m = _one_channel(clip, np.full(clip.n_frames, 17.5))
     obs = np.ones((clip.n_frames, clip.skeleton.n_joints), bool)
     obs[::7, 7] = False
-    obs[100:220, 7] = False          # a gap far wider than the kernel
+    obs[100:220, 7] = False  # a gap far wider than the kernel
     for spec in ("gaussian", "gaussian:sigma_ms=125"):
         out = create(spec).clean(Observation(m, obs)).motion.channels[:, 3 + 3 * 7 + 1]
-        np.testing.assert_allclose(out, 17.5, atol=1e-9)   # edges included: no pull towards 0
+        np.testing.assert_allclose(out, 17.5, atol=1e-9)  # edges included: no pull towards 0
 
 
 def test_gaussian_normalised_convolution_ignores_missing_samples(clip):
@@ -254,14 +265,14 @@ def test_gaussian_normalised_convolution_ignores_missing_samples(clip):
     obs[::11, 7] = False
     X = clip.channels
     X[:, 3 + 3 * 7 + 1] = x
-    X[~obs[:, 7], 3 + 3 * 7 + 1] = 1e6        # garbage in the missing samples: must not matter
+    X[~obs[:, 7], 3 + 3 * 7 + 1] = 1e6  # garbage in the missing samples: must not matter
     out = create("gaussian").clean(Observation(clip.with_channels(X), obs)).motion.channels[:, 3 + 3 * 7 + 1]
     sigma = 0.058 * clip.fps
     i = np.arange(-int(4 * sigma + 0.5), int(4 * sigma + 0.5) + 1)
     g = np.exp(-0.5 * (i / sigma) ** 2)
     m = obs[:, 7].astype(float)
     expected = np.convolve(m * x, g, "same") / np.convolve(m, g, "same")
-    np.testing.assert_allclose(out, expected, atol=0.01)     # gap samples weigh 1e-3, not 0
+    np.testing.assert_allclose(out, expected, atol=0.01)  # gap samples weigh 1e-3, not 0
 
 
 @pytest.mark.parametrize("sigma_ms", [58.0, 125.0])
@@ -316,7 +327,7 @@ def test_kalman_noise_estimate_for_known_white_noise():
     for std in (0.5, 2.0, 5.0):
         Y = smooth + rng.normal(size=smooth.shape) * std
         q, r = estimate_noise(Y, np.ones(Y.shape, bool))
-        assert np.all(np.abs(r / std ** 2 - 1.0) < 0.2), r / std ** 2
+        assert np.all(np.abs(r / std**2 - 1.0) < 0.2), r / std**2
 
 
 def test_mean_square_noise_estimate_for_heavy_tailed_noise():
@@ -337,15 +348,17 @@ def test_mean_square_noise_estimate_for_heavy_tailed_noise():
         np.testing.assert_allclose(measurement_variance(gauss, seen, robust=robust), 4.0, rtol=0.1)
 
 
-@pytest.mark.parametrize("corruption, quieter", [("angular:0.5", True), ("angular:0.1", True),
-                                                  ("spatial:1", False), ("angular:0.5+outliers:0.05", False)])
+@pytest.mark.parametrize(
+    "corruption, quieter",
+    [("angular:0.5", True), ("angular:0.1", True), ("spatial:1", False), ("angular:0.5+outliers:0.05", False)],
+)
 def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter, clip):
     """The feet's observed angles tell their direction better than the toe's observed
     position does under angle noise (the toe carries the noise of the whole leg), not
     under position noise, and not when the angles have outliers."""
+    from workbench.corruption import parse_corruption
     from workbench.engine.signal import bridge_gaps
     from workbench.engine.smoothing import angles_are_quieter
-    from workbench.corruption import parse_corruption
 
     sk = clip.skeleton
     feet = [sk.index("LeftFoot"), sk.index("RightFoot")]
@@ -356,15 +369,23 @@ def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter
     assert angles_are_quieter(sk, bridged, obs.observed, positions, []).shape == (0,)
 
 
-@pytest.mark.parametrize("corruption, bridge", [("gaps:0.02", True), ("angular:0.5+gaps:0.02", True),
-                                                 ("spatial:0.2+gaps:0.02", True), ("spatial:1+gaps:0.02", False),
-                                                 ("angular:0.5+outliers:0.05", False), ("outliers:0.02", False)])
+@pytest.mark.parametrize(
+    "corruption, bridge",
+    [
+        ("gaps:0.02", True),
+        ("angular:0.5+gaps:0.02", True),
+        ("spatial:0.2+gaps:0.02", True),
+        ("spatial:1+gaps:0.02", False),
+        ("angular:0.5+outliers:0.05", False),
+        ("outliers:0.02", False),
+    ],
+)
 def test_angles_bridge_holes_unless_the_noise_is_in_the_positions_or_has_outliers(corruption, bridge, clip):
     """A take's holes are left to the angles' smoother when it is clean, when its noise
     is in the angles or small, not under position noise of 1 cm, nor with outliers."""
+    from workbench.corruption import parse_corruption
     from workbench.engine.signal import bridge_gaps
     from workbench.engine.smoothing import angles_bridge_holes
-    from workbench.corruption import parse_corruption
 
     obs = parse_corruption(corruption).apply(clip, seed=0)
     bridged = bridge_gaps(obs)
@@ -372,13 +393,22 @@ def test_angles_bridge_holes_unless_the_noise_is_in_the_positions_or_has_outlier
     assert angles_bridge_holes(clip.skeleton, bridged, obs.observed, positions, 5.0) is bridge
 
 
-@pytest.mark.parametrize("corruption, quiet", [("gaps:0.02", True), ("angular:0.1", True), ("spatial:0.2", True),
-                                                ("angular:0.9", False), ("spatial:1", False), ("outliers:0.01", False)])
+@pytest.mark.parametrize(
+    "corruption, quiet",
+    [
+        ("gaps:0.02", True),
+        ("angular:0.1", True),
+        ("spatial:0.2", True),
+        ("angular:0.9", False),
+        ("spatial:1", False),
+        ("outliers:0.01", False),
+    ],
+)
 def test_angles_are_quiet_below_half_a_centimetre_of_noise(corruption, quiet, clip):
     """Quiet: less than 0.5 cm of angle noise, outliers included, as the descendants see it."""
+    from workbench.corruption import parse_corruption
     from workbench.engine.signal import bridge_gaps
     from workbench.engine.smoothing import angles_are_quiet
-    from workbench.corruption import parse_corruption
 
     obs = parse_corruption(corruption).apply(clip, seed=0)
     assert angles_are_quiet(clip.skeleton, bridge_gaps(obs), obs.observed) is quiet
@@ -399,7 +429,7 @@ def test_kalman_noise_estimate_on_mocap(level, clip):
 def test_kalman_fixed_noise_parameters(clip):
     obs = Observation(noisy(clip))
     light = create("kalman:measurement_noise_deg2=0.01,process_noise_deg2_per_frame4=100").clean(obs).motion
-    assert angle_rms(light, obs.motion) < 0.2         # trusts the data: hardly smooths
+    assert angle_rms(light, obs.motion) < 0.2  # trusts the data: hardly smooths
     heavy = create("kalman:process_noise_deg2_per_frame4=0.0001").clean(obs).motion
     assert angle_rms(heavy, obs.motion) > angle_rms(light, obs.motion)
 
@@ -413,8 +443,8 @@ def test_the_smoother_bridges_a_hole_nearer_a_smooth_truth_than_a_line():
     t = np.arange(240.0)
     truth = np.column_stack([np.sin(t / 12.0), np.cos(t / 20.0)])
     observed = np.ones(truth.shape, bool)
-    observed[50:56, 0] = False                  # a short hole
-    observed[100:130, 1] = False                # a partial-body hole of a slower channel
+    observed[50:56, 0] = False  # a short hole
+    observed[100:130, 1] = False  # a partial-body hole of a slower channel
     line, smooth = interpolate_gaps(truth, observed), smooth_and_fill(truth, observed)
     np.testing.assert_allclose(smooth[observed], truth[observed], atol=5e-3)
     for hole in (np.s_[50:56, 0], np.s_[100:130, 1]):
@@ -432,10 +462,11 @@ def test_cv_smoother_equals_rts_recursion():
     obs[:8, 2] = False
     obs[rng.random(F) < 0.2, 3] = False
     q, r = rng.uniform(0.01, 1.0, D), rng.uniform(0.1, 2.0, D)
-    ours = cv_smooth(Y, obs, q, r)          # DCT path for columns 0 and 4, banded for the rest
+    ours = cv_smooth(Y, obs, q, r)  # DCT path for columns 0 and 4, banded for the rest
     for d in range(D):
-        ref = rts_reference(Y[:, d:d + 1], obs[:, d:d + 1], r[d:d + 1], np.eye(1) * 2, -np.eye(1),
-                            np.zeros(1), np.eye(1) * q[d])[:, 0]
+        ref = rts_reference(
+            Y[:, d : d + 1], obs[:, d : d + 1], r[d : d + 1], np.eye(1) * 2, -np.eye(1), np.zeros(1), np.eye(1) * q[d]
+        )[:, 0]
         np.testing.assert_allclose(ours[:, d], ref, atol=1e-5 * np.abs(ref).max())
 
 

@@ -3,8 +3,8 @@
 import numpy as np
 from threadpoolctl import threadpool_info
 
-from workbench.engine.threads import one_blas_thread
 from workbench.corruption import parse_corruption
+from workbench.engine.threads import one_blas_thread
 from workbench.registry import create
 
 
@@ -30,6 +30,7 @@ def test_the_torch_engines_clean_on_one_blas_thread(monkeypatch, walk):
         def call(*args, **kwargs):
             seen.append(blas_threads())
             return function(*args, **kwargs)
+
         return call
 
     monkeypatch.setattr(cae_engine, "inverse_kinematics", recording(cae_engine.inverse_kinematics))

@@ -7,6 +7,18 @@ import numpy as np
 import pytest
 import torch
 
+from engines.cae import CAE, Holden
+from engines.cae.representation import (
+    Layout,
+    decode,
+    encode,
+    heading,
+    image_mask,
+    integrate,
+    mirror_rows,
+    pad_time,
+    reverse_time,
+)
 from workbench import metrics, registry
 from workbench.core.channels import hole_length
 from workbench.core.kinematics import forward_kinematics
@@ -14,10 +26,6 @@ from workbench.core.motion import Observation, joint_angle_columns, position_unk
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
-
-from engines.cae import CAE, Holden
-from engines.cae.representation import (Layout, decode, encode, heading, image_mask, integrate,
-                                        mirror_rows, pad_time, reverse_time)
 from workbench.engine.signal import bridge_gaps
 
 torch.set_num_threads(1)
@@ -204,9 +212,22 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
     F, H = 300, layout.n_rows
     image = np.arange(F)[:, None] * np.linspace(1.0, 2.0, H)[None]
     image[:, -3:] = [0.5, 1.0, 0.1]
-    sampler = WindowSampler([image], np.zeros(H), np.ones(H), layout, None, np.array([2, 3]), 64, 5.0,
-                            time_scale_pct=50.0, body_scale_pct=5.0, input_noise=0.0, input_fill="zero",
-                            sampling="frames", rng=np.random.default_rng(0))
+    sampler = WindowSampler(
+        [image],
+        np.zeros(H),
+        np.ones(H),
+        layout,
+        None,
+        np.array([2, 3]),
+        64,
+        5.0,
+        time_scale_pct=50.0,
+        body_scale_pct=5.0,
+        input_noise=0.0,
+        input_fill="zero",
+        sampling="frames",
+        rng=np.random.default_rng(0),
+    )
     X = sampler.windows(32)
     assert X.shape == (32, 64, H)
     slope = np.diff(X[:, :, :-3], axis=1) / np.linspace(1.0, 2.0, H)[:-3]
@@ -229,8 +250,9 @@ def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
     mask[40:70, 1] = False
     out = np.zeros((F, H))
     offset = np.array([1.0, -2.0, 0.5, 3.0])
-    np.testing.assert_allclose(engine.correction(out + offset, mask, out, np.zeros_like(mask)),
-                               np.broadcast_to(offset, (F, H)), atol=1e-12)
+    np.testing.assert_allclose(
+        engine.correction(out + offset, mask, out, np.zeros_like(mask)), np.broadcast_to(offset, (F, H)), atol=1e-12
+    )
     flips = np.where(np.arange(F) % 2, 1.0, -1.0)[:, None] * np.ones(H)
     exact = np.zeros_like(mask)
     exact[10, 2] = True
@@ -279,8 +301,9 @@ def test_feet_keep_their_smoothed_angles_where_the_noise_is_in_the_angles(test_c
     assert metrics.rms_angle_deg(test_clip, kept) < metrics.rms_angle_deg(test_clip, aimed)
     assert metrics.mpjpe_cm(test_clip, kept) < metrics.mpjpe_cm(test_clip, aimed)
     marker = parse_corruption("spatial:1").apply(test_clip, seed=0)
-    np.testing.assert_array_equal(*(registry.create(s).clean(marker).motion.angles_deg[:, feet]
-                                    for s in ("cae", "cae:angle_lever_cm=0")))
+    np.testing.assert_array_equal(
+        *(registry.create(s).clean(marker).motion.angles_deg[:, feet] for s in ("cae", "cae:angle_lever_cm=0"))
+    )
 
 
 def test_anchor_sheds_the_noise_of_the_root_track(test_clip):
@@ -310,8 +333,22 @@ def test_network_input_bridges_unknown_entries_and_clips_are_drawn_alike(walk):
     layout = Layout.from_skeleton(walk.skeleton)
     images = [np.zeros((n, layout.n_rows)) for n in (100, 900)]
     for sampling, weights in (("clips", [0.5, 0.5]), ("frames", [0.1, 0.9])):
-        sampler = WindowSampler(images, np.zeros(layout.n_rows), np.ones(layout.n_rows), layout, None,
-                                np.array([2]), 64, 5.0, 10.0, 0.0, 0.0, "linear", sampling, np.random.default_rng(0))
+        sampler = WindowSampler(
+            images,
+            np.zeros(layout.n_rows),
+            np.ones(layout.n_rows),
+            layout,
+            None,
+            np.array([2]),
+            64,
+            5.0,
+            10.0,
+            0.0,
+            0.0,
+            "linear",
+            sampling,
+            np.random.default_rng(0),
+        )
         np.testing.assert_allclose(sampler.weights, weights)
 
 
@@ -383,18 +420,21 @@ def test_short_levers_keep_their_observed_angles(test_clip):
     seen = obs.observed[:, short[0]]
     raw = registry.create("cae:anchor=false").clean(obs).motion.angles_deg[:, short]
     np.testing.assert_allclose(raw[seen], test_clip.angles_deg[:, short][seen], atol=1e-6)
-    np.testing.assert_allclose(raw[~seen], registry.create("lerp").clean(obs).motion.angles_deg[:, short][~seen],
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        raw[~seen], registry.create("lerp").clean(obs).motion.angles_deg[:, short][~seen], atol=1e-6
+    )
     cols = joint_angle_columns(short)
     anchored = registry.create("cae").clean(obs).motion.channels[:, cols]
-    np.testing.assert_allclose(anchored, smooth_observed(obs.motion.channels[:, cols], np.isfinite(
-        obs.motion.channels[:, cols])), atol=1e-6)
+    np.testing.assert_allclose(
+        anchored, smooth_observed(obs.motion.channels[:, cols], np.isfinite(obs.motion.channels[:, cols])), atol=1e-6
+    )
     free = registry.create("cae:short_lever_cm=0,angle_lever_cm=0").clean(obs).motion.angles_deg[:, short]
     assert np.abs(free[seen] - test_clip.angles_deg[:, short][seen]).max() > 0.5
     noisy = parse_corruption("spatial:1").apply(test_clip, seed=0)
     out = registry.create("cae").clean(noisy).motion.angles_deg[:, short]
     assert np.sqrt(np.mean((out - test_clip.angles_deg[:, short]) ** 2)) < 0.5 * np.sqrt(
-        np.mean((noisy.motion.angles_deg[:, short] - test_clip.angles_deg[:, short]) ** 2))
+        np.mean((noisy.motion.angles_deg[:, short] - test_clip.angles_deg[:, short]) ** 2)
+    )
 
 
 def test_short_holes_are_bridged_as_observed(test_clip):

@@ -41,7 +41,7 @@ def test_input_includes_the_observed_mask(ebd, walk):
     data = ebd._frame_data(obs)
     C = data.values.shape[1]
     assert data.inputs.shape == (100, 2 * C + 3)
-    assert np.array_equal(data.inputs[:, C + 3:], (~data.missing).astype(np.float32))
+    assert np.array_equal(data.inputs[:, C + 3 :], (~data.missing).astype(np.float32))
 
 
 def test_without_gaps_nothing_changes(ebd, walk):
@@ -107,9 +107,12 @@ def test_quiet_takes_bridge_holes_along_the_smoother(ebd, held_out_walk):
     across holes of up to 60 frames, nearer the truth than the line; with outliers in
     the angles it takes over from the line, as in the paper."""
     obs = parse_corruption("gaps:0.01,20").apply(held_out_walk, seed=0)
-    errs = {spec: metrics.gap_mpjpe_cm(held_out_walk, registry.create(spec).clean(obs).motion, obs.observed)
-            for spec in ("ebd", "ebd:smooth_hole_frames=0")}
+    errs = {
+        spec: metrics.gap_mpjpe_cm(held_out_walk, registry.create(spec).clean(obs).motion, obs.observed)
+        for spec in ("ebd", "ebd:smooth_hole_frames=0")
+    }
     assert errs["ebd"] < 0.93 * errs["ebd:smooth_hole_frames=0"], errs  # 1.26 against 1.42 cm
     loud = parse_corruption("angular:0.5+outliers:0.05+gaps:0.01,20").apply(held_out_walk, seed=0)
-    assert np.array_equal(ebd.clean(loud).motion.channels,
-                          registry.create("ebd:smooth_hole_frames=0").clean(loud).motion.channels)
+    assert np.array_equal(
+        ebd.clean(loud).motion.channels, registry.create("ebd:smooth_hole_frames=0").clean(loud).motion.channels
+    )

@@ -14,8 +14,8 @@ from engines.ebf.features import RADIUS, root_angular_velocity_dps, window_index
 from engines.ebf.nets import filter_windows, gaussian_logits, offsets_like  # noqa: E402
 from engines.ebf.root import NARROW_FRAMES, clean_root  # noqa: E402
 from workbench import metrics, registry  # noqa: E402
-from workbench.core.motion import Observation, angle_columns  # noqa: E402
 from workbench.core.channels import unwrap_deg  # noqa: E402
+from workbench.core.motion import Observation, angle_columns  # noqa: E402
 from workbench.corruption import parse_corruption  # noqa: E402
 from workbench.engine import EngineError, NotFittedError  # noqa: E402
 
@@ -38,7 +38,7 @@ def test_gaussian_weights_renormalised_over_existing_frames():
     _, w = filter_windows(gaussian_logits(sigma, offsets_like(values)), values, valid)
     w = w[0, :, 0].numpy()
     d = np.arange(-RADIUS, RADIUS + 1)
-    expect = np.exp(-d**2 / 32.0) * (d >= -5)
+    expect = np.exp(-(d**2) / 32.0) * (d >= -5)
     assert np.allclose(w, expect / expect.sum(), atol=1e-12)
     assert np.all(w[:10] == 0) and w.sum() == pytest.approx(1.0)
 
@@ -80,7 +80,7 @@ def test_huge_sigma_is_window_circular_mean_and_tiny_sigma_is_identity():
 def test_window_index_repeats_edges_and_marks_missing_frames():
     idx, valid = window_index(np.array([0, 5, 9]), 10)
     assert idx.shape == (3, L) and idx.min() == 0 and idx.max() == 9
-    assert idx[0, RADIUS] == 0 and valid[0, RADIUS:RADIUS + 10].all() and not valid[0, :RADIUS].any()
+    assert idx[0, RADIUS] == 0 and valid[0, RADIUS : RADIUS + 10].all() and not valid[0, :RADIUS].any()
     assert valid.sum(axis=1).tolist() == [10, 10, 10]
 
 
@@ -107,10 +107,14 @@ def test_root_filter_follows_a_turn_through_gimbal_lock_and_sheds_its_noise():
     F, unit_cm = 240, 2.54
     t = np.arange(F)
     rng = np.random.default_rng(0)
-    R_clean = axis_rotation(1, np.deg2rad(np.linspace(0.0, 180.0, F))) @ axis_rotation(0, np.deg2rad(5 * np.sin(t / 20)))
+    R_clean = axis_rotation(1, np.deg2rad(np.linspace(0.0, 180.0, F))) @ axis_rotation(
+        0, np.deg2rad(5 * np.sin(t / 20))
+    )
     R_noisy = R_clean @ euler_to_matrix(rng.normal(0, 0.6, (F, 3)), "ZYX")
     clean = np.concatenate([np.stack([0 * t, 0 * t, 0.5 * t], axis=1), matrix_to_euler(R_clean, "ZYX")], axis=1)
-    noisy = np.concatenate([clean[:, :3] + rng.normal(0, 0.5 / unit_cm, (F, 3)), matrix_to_euler(R_noisy, "ZYX")], axis=1)
+    noisy = np.concatenate(
+        [clean[:, :3] + rng.normal(0, 0.5 / unit_cm, (F, 3)), matrix_to_euler(R_noisy, "ZYX")], axis=1
+    )
     assert np.abs(np.diff(clean[:, 3])).max() > 170  # the channels jump at the lock
     out, sigma = clean_root(noisy, 5.0, unit_cm, "ZYX")
 
@@ -211,7 +215,7 @@ def _reference_filter(X: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     for t in range(F):
         lo, hi = max(0, t - RADIUS), min(F, t + RADIUS + 1)
         d = np.arange(lo, hi) - t
-        w = np.exp(-d[:, None] ** 2 / (2 * sigma[t] ** 2))
+        w = np.exp(-(d[:, None] ** 2) / (2 * sigma[t] ** 2))
         a = np.deg2rad(X[lo:hi] - X[t])  # the weighted circular mean, on frame t's branch
         out[t] = X[t] + np.rad2deg(np.arctan2((w * np.sin(a)).sum(0), (w * np.cos(a)).sum(0)))
     return out

@@ -56,7 +56,7 @@ def test_bases_are_orthonormal_and_keep_the_requested_energy(fitted):
         assert np.allclose(E.T @ E, np.eye(K), atol=1e-5), space
         assert np.all(np.diff(model.spectrum) <= 1e-9 * model.spectrum[0]), space
         assert model.energy_share >= kept - 1e-12, space
-        assert model.spectrum[:K - 1].sum() / model.spectrum.sum() < kept, f"{space}: K is not the smallest"
+        assert model.spectrum[: K - 1].sum() / model.spectrum.sum() < kept, f"{space}: K is not the smallest"
     # constant channels (CMU's LHipJoint rotations are always 0) are held, not modelled
     assert not np.isin([6, 7, 8], fitted.models_["angles"].columns).any()
     assert np.isin([6, 7, 8], fitted.models_["angles"].held).all()
@@ -75,7 +75,7 @@ def test_projector_matches_the_window_by_window_projection(fitted):
             ref_prior += np.sum((W - R) ** 2)
             R = R.reshape(len(W), -1, M)
             for s in range(len(W)):
-                ref[s0 + s:s0 + s + M] += R[s].T
+                ref[s0 + s : s0 + s + M] += R[s].T
         assert np.allclose(added, ref, atol=1e-5 * np.abs(ref).max()), F
         assert np.isclose(prior, ref_prior, rtol=1e-4), F
 
@@ -104,13 +104,14 @@ def test_outliers_are_rejected_better_than_by_least_squares(fitted, walk):
         return float(np.sqrt(np.mean(err[:, keep] ** 2)))
 
     d = ((obs.motion.channels - walk.channels)[:, cols] + 180.0) % 360.0 - 180.0
-    noisy = float(np.sqrt(np.mean(d ** 2)))
+    noisy = float(np.sqrt(np.mean(d**2)))
     assert rms(robust) < 0.35 * rms(plain) and rms(plain) < noisy
     assert rms(robust) < 3.0
     # the paper's own solver and objective (no smoothness term, refit or median start)
     # rejects outliers too, less well (its alternating updates crawl at lambda 3)
-    paper = with_params(fitted, solver="alternating", smoothness=0.0, refit_prior_weight=0.0,
-                        start_median_frames=1).clean(obs)
+    paper = with_params(
+        fitted, solver="alternating", smoothness=0.0, refit_prior_weight=0.0, start_median_frames=1
+    ).clean(obs)
     assert rms(robust) < 0.5 * rms(paper) and rms(paper) < rms(plain)
     w = robust.diagnostics["robust_weight"]
     assert w.shape == walk.channels.shape
@@ -136,8 +137,9 @@ def test_objective_never_increases(fitted, walk):
     assert np.all(np.diff(cg.cost) <= 1e-6 * cg.cost[0])
     same = robust_filter(u, np.ones_like(u, bool), model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg")
     assert same.cost[-1] <= res.cost[-1]
-    smooth = robust_filter(u, alpha, model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg",
-                           smoothness=np.full(u.shape[1], 5.0))
+    smooth = robust_filter(
+        u, alpha, model.projector, 0.1, 3.0, tol=0.0, max_iterations=6, method="cg", smoothness=np.full(u.shape[1], 5.0)
+    )
     assert np.all(np.diff(smooth.cost) <= 1e-6 * smooth.cost[0])
 
 
@@ -210,6 +212,7 @@ def test_position_mode_returns_a_motion_with_the_skeletons_bone_lengths(fitted, 
     noisy = obs.motion.positions - obs.motion.positions[:, :1]
     clean = motion.positions - motion.positions[:, :1]
     truth = walk.positions - walk.positions[:, :1]
+
     def err(P):
         return np.mean(np.linalg.norm(P - truth, axis=2))
 
@@ -219,8 +222,8 @@ def test_position_mode_returns_a_motion_with_the_skeletons_bone_lengths(fitted, 
 def test_position_mode_keeps_short_levers_at_their_smoothed_observed_angles(fitted, walk):
     # the hands and finger bases are not aimed from filtered positions a few mm off: they
     # keep their observed angles through the kalman smoother, as in cae
-    from workbench.engine.smoothing import smooth_observed
     from workbench.core.kinematics import short_lever_joints
+    from workbench.engine.smoothing import smooth_observed
 
     obs, _, _ = _outlier_case(walk, fitted, rate=0.0)
     short = short_lever_joints(walk.skeleton, 5.0)

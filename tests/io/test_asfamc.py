@@ -86,8 +86,9 @@ def _ref_pose(bones, children, root, frame):
     values = dict(zip(order, frame["root"]))
     C_root = _axis_frame(np.array(root["orientation"], float), root["axis"][0])
     rot_dofs = [d for d in order if d.startswith("r")]
-    M_root = Rotation.from_euler("".join(d[1] for d in rot_dofs), [values[d] for d in rot_dofs],
-                                 degrees=True).as_matrix()
+    M_root = Rotation.from_euler(
+        "".join(d[1] for d in rot_dofs), [values[d] for d in rot_dofs], degrees=True
+    ).as_matrix()
     root_pos = np.array([values["tx"], values["ty"], values["tz"]])
     starts, ends = {"root": root_pos}, {}
 
@@ -321,7 +322,7 @@ def _bad_amc(tmp_path, old, new):
 
 ASF_CASES = {
     # name: (old, new, (needle in the bad text, which occurrence), words in the message)
-    "missing bonedata": (TINY_ASF[TINY_ASF.index(":bonedata"):], "", ("orientation 0 0 0", 1), "no :bonedata"),
+    "missing bonedata": (TINY_ASF[TINY_ASF.index(":bonedata") :], "", ("orientation 0 0 0", 1), "no :bonedata"),
     "no direction": ("     direction 1 0 0\n", "", ("begin", 2), "no 'direction'"),
     "non-number length": ("length 3", "length three", ("length three", 1), "'three' is not a number"),
     "short axis": ("axis 0 0 90 XYZ", "axis 0 0", ("axis 0 0", 1), "needs 3 numbers"),
@@ -350,7 +351,7 @@ AMC_CASES = {
     "too few values": ("root 1 10 0 0 90 0", "root 1 10 0 0 90", ("root 1 10 0 0 90", 1), "has 5 values"),
     "non-number": ("leg -90", "leg abc", ("leg abc", 1), "'abc' is not a number"),
     "unknown bone": ("leg 90", "arm 90", ("arm 90", 1), "unknown bone 'arm'"),
-    "zero frames": (TINY_AMC[TINY_AMC.index("1\n"):], "", (":DEGREES", 1), "no frames"),
+    "zero frames": (TINY_AMC[TINY_AMC.index("1\n") :], "", (":DEGREES", 1), "no frames"),
     "truncated last frame": ("leg -90\n", "", ("root 1 10 0 0 90 0", 1), "has no values for leg"),
     "frame numbers skip": ("\n2\n", "\n5\n", ("5", 1), "does not follow"),
     "bone before any frame": ("1\nroot", "root", ("root 0 10 0 0 0 0", 1), "before the first frame"),

@@ -27,10 +27,10 @@ def test_reads_every_shared_clip(shared_takes):
     for f, m in shared_takes:
         assert np.isfinite(m.channels).all(), f
         sk = m.skeleton
-        layouts.add((m.fps, sk.n_joints, sk.rotation_orders[1], tuple(sk.names[j] for j in sk.translated),
-                     sk.root_chain))
-    assert layouts == {(120.0, 31, "ZYX", (), (0,)), (120.0, 43, "ZXY", (), (0,)),
-                       (30.0, 22, "ZXY", ("Hips",), (0, 1))}
+        layouts.add(
+            (m.fps, sk.n_joints, sk.rotation_orders[1], tuple(sk.names[j] for j in sk.translated), sk.root_chain)
+        )
+    assert layouts == {(120.0, 31, "ZYX", (), (0,)), (120.0, 43, "ZXY", (), (0,)), (30.0, 22, "ZXY", ("Hips",), (0, 1))}
 
 
 def test_every_shared_take_writes_back_exactly(shared_takes, tmp_path):
@@ -50,9 +50,10 @@ def _excerpt(path, frames) -> str:
     """The file with only the given frames: its own header and frame lines, verbatim."""
     lines = open(path, encoding="utf-8").read().splitlines()
     start = next(i for i, line in enumerate(lines) if line.strip().upper() == "MOTION")
-    body = [line for line in lines[start + 3:] if line.strip()]
-    return "\n".join(lines[:start + 1] + [f"Frames: {len(frames)}", lines[start + 2]]
-                     + [body[i] for i in frames]) + "\n"
+    body = [line for line in lines[start + 3 :] if line.strip()]
+    return (
+        "\n".join(lines[: start + 1] + [f"Frames: {len(frames)}", lines[start + 2]] + [body[i] for i in frames]) + "\n"
+    )
 
 
 def _bvhio_positions(text: str, tmp_path, n_frames: int) -> tuple[list[str], np.ndarray]:
@@ -128,9 +129,9 @@ def test_position_channels_replace_the_offset_on_any_joint(tmp_path):
     np.testing.assert_array_equal(m.translations[:, 0], [[7, 100, -5], [7, 110, -5], [7, 120, -5]])
     np.testing.assert_array_equal(sk.offsets[[0, 2, 3]], [[0, 0, 0], [0.5, -40, 0], [0, 30, 0]])
     np.testing.assert_array_equal(sk.file_offsets[:3], [[10, 20, 30], [5, 0, 0], [0.5, -40, 1e-6]])
-    np.testing.assert_array_equal(m.angles_deg[1, 0], [0, 10, 3])   # base: Y Z X order, as in the file
+    np.testing.assert_array_equal(m.angles_deg[1, 0], [0, 10, 3])  # base: Y Z X order, as in the file
     np.testing.assert_array_equal(m.angles_deg[2, 2], [30, -10, 5])  # knee: Z X Y
-    np.testing.assert_allclose(m.positions[0, 0], [1, 2, 4])          # no OFFSET added
+    np.testing.assert_allclose(m.positions[0, 0], [1, 2, 4])  # no OFFSET added
     names, theirs = _bvhio_positions(ROOT_WITH_OFFSET, tmp_path, 3)
     assert names == list(sk.names)
     np.testing.assert_allclose(theirs, m.positions, atol=1e-4)
@@ -147,8 +148,10 @@ def test_a_hips_that_stands_still_is_still_translated(studio_take, tmp_path):
     """The layout does not hang on the motion: a take whose Hips holds one place (a pose)
     still has it translated, as its channels are not its OFFSET line."""
     path = tmp_path / "pose.bvh"
-    write_bvh(path, studio_take.replace(translations=np.broadcast_to(studio_take.translations[:1],
-                                                                    studio_take.translations.shape)))
+    write_bvh(
+        path,
+        studio_take.replace(translations=np.broadcast_to(studio_take.translations[:1], studio_take.translations.shape)),
+    )
     pose = read_bvh(path)
     assert pose.skeleton.signature() == studio_take.skeleton.signature() and pose.skeleton.root_chain == (0, 1)
 
@@ -159,8 +162,11 @@ def test_a_studio_take_loads_in_the_other_reader(studio_take, tmp_path):
     other = Bvh(path.read_text())
     assert other.nframes == studio_take.n_frames and other.get_joints_names() == list(studio_take.skeleton.names)
     hips = studio_take.skeleton.translated[0]
-    assert np.allclose(other.frame_joint_channels(5, "Hips", ["Xposition", "Yposition", "Zposition"]),
-                       studio_take.translations[5, 0], atol=1e-6)
+    assert np.allclose(
+        other.frame_joint_channels(5, "Hips", ["Xposition", "Yposition", "Zposition"]),
+        studio_take.translations[5, 0],
+        atol=1e-6,
+    )
     assert np.allclose(other.joint_offset("Hips"), studio_take.skeleton.file_offsets[hips], atol=1e-6)
 
 

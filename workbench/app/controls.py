@@ -10,8 +10,22 @@ import re
 from pathlib import Path
 
 from PySide6.QtCore import Qt
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QFormLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QLineEdit, QListWidget, QListWidgetItem, QPushButton, QSpinBox, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
 
 from .. import registry
 from ..engine import WEIGHTS_OPTION
@@ -46,8 +60,9 @@ class TakePanel(QGroupBox):
         browse = QPushButton("Open file…")
         browse.clicked.connect(self.browse)
         self.corruption = QLineEdit(DEFAULT_CORRUPTION)
-        self.corruption.setToolTip("models joined by '+', e.g. angular:0.5+gaps:0.01; 'none' shows the take as "
-                                   "recorded (no ground truth)")
+        self.corruption.setToolTip(
+            "models joined by '+', e.g. angular:0.5+gaps:0.01; 'none' shows the take as recorded (no ground truth)"
+        )
         self.corruption.returnPressed.connect(self.apply)
         self.seed = QSpinBox()
         self.seed.setRange(0, 2**31 - 1)
@@ -210,9 +225,11 @@ class EnginePanel(QGroupBox):
         for stage in getattr(engine, "stages", [engine]):
             fields = {f.name: QLineEdit(str(getattr(stage.params, f.name))) for f in dataclasses.fields(stage.params)}
             if stage.info.trainable:
-                fields[WEIGHTS_OPTION] = QLineEdit(str(stage.weights_folder or ""), placeholderText="default",
-                                                   toolTip="a folder that `workbench train --out` wrote; "
-                                                           "empty: the committed weights")
+                fields[WEIGHTS_OPTION] = QLineEdit(
+                    str(stage.weights_folder or ""),
+                    placeholderText="default",
+                    toolTip="a folder that `workbench train --out` wrote; empty: the committed weights",
+                )
             self.edits.append((stage.info.name, fields))
             if not fields:
                 self.params.addRow(stage.info.name, QLabel("no parameters"))
@@ -229,15 +246,18 @@ class EnginePanel(QGroupBox):
         s = self.session
         try:
             spec = ">".join(
-                registry.create(name + ":" + ",".join(f"{k}={e.text().strip()}" for k, e in fields.items()),
-                                pretrained=False).spec
-                for name, fields in self.edits)
+                registry.create(
+                    name + ":" + ",".join(f"{k}={e.text().strip()}" for k, e in fields.items()), pretrained=False
+                ).spec
+                for name, fields in self.edits
+            )
         except Exception as err:  # a bad value: tell the user, keep the old spec
             s.message.emit(f"bad parameters: {err}")
             return
         if spec != s.current:
-            s.set_specs([spec if x == s.current else x for x in s.specs] if s.current in s.specs else s.specs + [spec],
-                        spec)
+            s.set_specs(
+                [spec if x == s.current else x for x in s.specs] if s.current in s.specs else s.specs + [spec], spec
+            )
 
 
 class MessageLog(QListWidget):

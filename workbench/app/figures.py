@@ -28,8 +28,10 @@ def error_series(take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -
     names, body = take.motion.skeleton.names, body_joints(take.motion.skeleton)
     noisy, per_run = take.noisy.errors_cm, [r.track.errors_cm for r in runs]
     series = [] if noisy is None else [Series("noisy (RMS)", rms_over_joints(noisy[:, body]), NOISY, 1.2)]
-    series += [Series(f"{r.spec} (RMS)", rms_over_joints(e[:, body]), engine_colour(i), 2.0)
-               for i, (r, e) in enumerate(zip(runs, per_run))]
+    series += [
+        Series(f"{r.spec} (RMS)", rms_over_joints(e[:, body]), engine_colour(i), 2.0)
+        for i, (r, e) in enumerate(zip(runs, per_run))
+    ]
     for k, j in enumerate(selected):
         colour = JOINTS[k % len(JOINTS)]
         if noisy is not None:
@@ -52,19 +54,32 @@ def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...
     ax, strip = fig.subplots(2, 1, sharex=True, height_ratios=[5, 1])
     missing = take.missing
     if take.truth is None and not runs:
-        plot_note(ax, "no ground truth: errors need a clean take corrupted here;\n"
-                      "once an engine has run, how far it moved the recording")
+        plot_note(
+            ax,
+            "no ground truth: errors need a clean take corrupted here;\n"
+            "once an engine has run, how far it moved the recording",
+        )
         ax.set_axis_on()
         ax.set_yticks([])
     else:
         gaps = missing[:, list(selected)].any(axis=1) if selected else None
-        labels = (() if take.truth is not None
-                  else ("no ground truth: how far each engine moved the recording", take.error_label))
+        labels = (
+            ()
+            if take.truth is not None
+            else ("no ground truth: how far each engine moved the recording", take.error_label)
+        )
         plot_errors(ax, error_series(take, runs, selected), take.fps, gaps, *labels)
         ax.set_xlabel("")
     F, J = missing.shape
-    strip.imshow(missing.T, aspect="auto", interpolation="nearest", cmap="Greys", vmin=0, vmax=1.6,
-                 extent=(0, F / take.fps, J, 0))
+    strip.imshow(
+        missing.T,
+        aspect="auto",
+        interpolation="nearest",
+        cmap="Greys",
+        vmin=0,
+        vmax=1.6,
+        extent=(0, F / take.fps, J, 0),
+    )
     for k, j in enumerate(selected):
         strip.axhspan(j, j + 1, color=JOINTS[k % len(JOINTS)], alpha=0.35, lw=0)
     strip.set_yticks([])
@@ -101,9 +116,15 @@ def draw_filter_widths(fig, take: Take, runs: list[EngineRun], selected: tuple[i
     maps = [(r.spec, r.filter_sigma_frames) for r in runs if r.filter_sigma_frames is not None]
     vmax = max((float(np.nanmax(s, initial=0.0)) for _, s in maps), default=0.0)
     skeleton = take.motion.skeleton
-    return draw_maps(fig, maps, lambda ax, spec, sigma: plot_filter_widths(
-        ax, sigma, take.fps, skeleton.names, f"filter widths · {spec}", vmax, selected, skeleton.translated),
-        "filter widths", runs)
+    return draw_maps(
+        fig,
+        maps,
+        lambda ax, spec, sigma: plot_filter_widths(
+            ax, sigma, take.fps, skeleton.names, f"filter widths · {spec}", vmax, selected, skeleton.translated
+        ),
+        "filter widths",
+        runs,
+    )
 
 
 def unknown_samples(take: Take, n_rows: int) -> np.ndarray | None:
@@ -131,9 +152,21 @@ def draw_data_weights(fig, take: Take, runs: list[EngineRun], selected: tuple[in
                 weights[unknown] = np.nan
             maps.append((r.spec, weights))
     skeleton = take.motion.skeleton
-    return draw_maps(fig, maps, lambda ax, spec, weights: plot_data_weights(
-        ax, weights, take.fps, skeleton.names, f"data weights · {spec} (dark: treated as an outlier)", selected,
-        skeleton.translated), "outlier weights", runs)
+    return draw_maps(
+        fig,
+        maps,
+        lambda ax, spec, weights: plot_data_weights(
+            ax,
+            weights,
+            take.fps,
+            skeleton.names,
+            f"data weights · {spec} (dark: treated as an outlier)",
+            selected,
+            skeleton.translated,
+        ),
+        "outlier weights",
+        runs,
+    )
 
 
 def draw_bone_lengths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> None:

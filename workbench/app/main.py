@@ -50,8 +50,13 @@ def application():
     return QApplication.instance() or QApplication(["workbench"])
 
 
-def open_window(source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION, seed: int = 0,
-                specs: list[str] | None = None, size: tuple[int, int] = WINDOW_SIZE):
+def open_window(
+    source: str = DEFAULT_CLIP,
+    corruption: str = DEFAULT_CORRUPTION,
+    seed: int = 0,
+    specs: list[str] | None = None,
+    size: tuple[int, int] = WINDOW_SIZE,
+):
     """A shown main window loading ``source``, its engines queued to run. The take
     loads on the worker while the window is being built."""
     application()
@@ -68,8 +73,9 @@ def open_window(source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION
     return window
 
 
-def run_gui(source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION, seed: int = 0,
-            specs: list[str] | None = None) -> int:
+def run_gui(
+    source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, specs: list[str] | None = None
+) -> int:
     """Open the window and run the event loop until it closes."""
     app = application()
     window = open_window(source, corruption, seed, specs)  # noqa: F841 (kept alive while the loop runs)
@@ -99,8 +105,14 @@ def settle(window, timeout_ms: int = 60000) -> None:
         QApplication.processEvents()
 
 
-def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION,
-                     frame: int = 150, joint: str = "LeftFoot", specs: list[str] | None = None) -> list[Path]:
+def make_screenshots(
+    out_dir: str | Path,
+    source: str = DEFAULT_CLIP,
+    corruption: str = DEFAULT_CORRUPTION,
+    frame: int = 150,
+    joint: str = "LeftFoot",
+    specs: list[str] | None = None,
+) -> list[Path]:
     """The window in its main states, and the report figure, as PNG files in ``out_dir``:
     default, compare, joint (a selected joint), heatmap (the filter-width tab, of the
     engine whose widths vary most), outliers (the outlier-weight tab of
@@ -131,8 +143,11 @@ def make_screenshots(out_dir: str | Path, source: str = DEFAULT_CLIP, corruption
     s.set_compare(False)
     s.select_joint(s.take.motion.skeleton.index(joint))
     shoot("joint")
-    widths = {spec: np.ptp(r.filter_sigma_frames) for spec, r in s.runs.items()
-              if isinstance(r, EngineRun) and r.filter_sigma_frames is not None}
+    widths = {
+        spec: np.ptp(r.filter_sigma_frames)
+        for spec, r in s.runs.items()
+        if isinstance(r, EngineRun) and r.filter_sigma_frames is not None
+    }
     if widths:  # the engine whose widths vary most
         s.set_current(max(widths, key=widths.get))
     window.plots.setCurrentIndex(1)

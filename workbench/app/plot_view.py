@@ -26,8 +26,12 @@ class Canvas(FigureCanvasQTAgg):
         self.update(x, self.rect().height() - y - h, w, h)
 
 
-TABS = (("Error over time", draw_errors), ("Filter widths", draw_filter_widths),
-        ("Outlier weights", draw_data_weights), ("Bone lengths", draw_bone_lengths))
+TABS = (
+    ("Error over time", draw_errors),
+    ("Filter widths", draw_filter_widths),
+    ("Outlier weights", draw_data_weights),
+    ("Bone lengths", draw_bone_lengths),
+)
 
 
 class PlotTabs(QTabWidget):

@@ -48,8 +48,10 @@ def scores_text(take: Take, runs: list[EngineRun]) -> str:
     for r in runs:
         sc = score(take.truth, r.track.motion, take.observation.observed)
         gap = f", in gaps {sc['gap_mpjpe_cm']:.2f} cm" if "gap_mpjpe_cm" in sc else ""
-        lines.append(f"{r.spec}: joint error {sc['mpjpe_cm']:.2f} cm{gap}, angles {sc['rms_angle_deg']:.2f}° RMS, "
-                     f"{r.seconds:.2f} s")
+        lines.append(
+            f"{r.spec}: joint error {sc['mpjpe_cm']:.2f} cm{gap}, angles {sc['rms_angle_deg']:.2f}° RMS, "
+            f"{r.seconds:.2f} s"
+        )
     return "\n".join(lines)
 
 
@@ -67,14 +69,23 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
     panels += [(draw_data_weights, n_weights)] * (n_weights > 0)
     maps_h = max(4.0, MAP_HEIGHT_IN * sum(n for _, n in panels))
     fig = Figure(figsize=(width, views_h + 4.5 + maps_h), dpi=DPI, layout="constrained")
-    fig.suptitle(f"{take.source} · corruption {take.corruption} · seed {take.seed} · frame {frame} "
-                 f"({frame / take.fps:.2f} s)", fontsize="large")
+    fig.suptitle(
+        f"{take.source} · corruption {take.corruption} · seed {take.seed} · frame {frame} ({frame / take.fps:.2f} s)",
+        fontsize="large",
+    )
     views, errors, bottom = fig.subfigures(3, 1, height_ratios=[views_h, 4.5, maps_h])
     ax = views.subplots()
     ax.imshow(image, interpolation="nearest")
     ax.set_axis_off()
-    views.colorbar(error_mappable(take.error_scale_cm()), ax=ax, location="right", shrink=0.6, pad=0.005,
-                   aspect=15, label=take.error_label)
+    views.colorbar(
+        error_mappable(take.error_scale_cm()),
+        ax=ax,
+        location="right",
+        shrink=0.6,
+        pad=0.005,
+        aspect=15,
+        label=take.error_label,
+    )
     if take.truth is not None and runs:
         ax.set_title(scores_text(take, runs), fontsize="medium", loc="left")
     axes = draw_errors(errors, take, runs, selected)
@@ -87,8 +98,15 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
     return fig
 
 
-def write_report(path: str | Path, source: str, corruption: str, seed: int, specs: list[str],
-                 frame: int | None = None, on_refused: Callable[[str, str], None] | None = None) -> Path:
+def write_report(
+    path: str | Path,
+    source: str,
+    corruption: str,
+    seed: int,
+    specs: list[str],
+    frame: int | None = None,
+    on_refused: Callable[[str, str], None] | None = None,
+) -> Path:
     """Load and corrupt ``source``, run the engines, write the report (PNG or PDF by
     suffix) atomically. ``frame`` defaults to the middle of the take. Raises what the
     engines raise; with ``on_refused``, an engine that refuses the take (EngineError: a

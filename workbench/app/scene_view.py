@@ -65,8 +65,15 @@ class SceneView(QWidget):
         if self.interactive:
             from pyvistaqt import QtInteractor
 
-            self.plotter = QtInteractor(self, shape=(1, n_panes), auto_update=False, multi_samples=0,
-                                        off_screen=False, theme=plain_theme(), **PLOTTER_OPTIONS)
+            self.plotter = QtInteractor(
+                self,
+                shape=(1, n_panes),
+                auto_update=False,
+                multi_samples=0,
+                off_screen=False,
+                theme=plain_theme(),
+                **PLOTTER_OPTIONS,
+            )
             self.plotter.window_size = list(self._pixels())  # aim the camera for the size it will have
             self.surface = self.plotter
         else:
@@ -95,9 +102,16 @@ class SceneView(QWidget):
         if len(self.plotter.renderers) != len(panes):
             self._new_surface(len(panes))
         key = (s.take, s.follow, len(panes))
-        self.scene = SkeletonScene(self.plotter, panes, s.take.motion.skeleton, s.take.root,
-                                   s.take.error_scale_cm(), follow=s.follow, keep_camera=key == self._built_for,
-                                   selected=s.selected)
+        self.scene = SkeletonScene(
+            self.plotter,
+            panes,
+            s.take.motion.skeleton,
+            s.take.root,
+            s.take.error_scale_cm(),
+            follow=s.follow,
+            keep_camera=key == self._built_for,
+            selected=s.selected,
+        )
         self._built_for = key
         self.show_frame(s.frame)
 
@@ -154,4 +168,3 @@ class SceneView(QWidget):
             return
         ratio = self.devicePixelRatioF()
         self.session.select_joint(self.scene.pick(x * ratio, y * ratio), add)
-

@@ -20,7 +20,6 @@ from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from .take import DEFAULT_CORRUPTION, EngineRun, Take, describe, open_take, run_engine
 
-
 TICK_MS = 15
 
 
@@ -82,8 +81,14 @@ class Session(QObject):
         self._clock = (0.0, 0)  # (time, frame) playback started from
 
     # -- the worker -----------------------------------------------------------------
-    def _submit(self, what: str, fn: Callable[[], object], done: Callable[[object], None],
-                failed: Callable[[str], None], wanted: Callable[[], bool]) -> None:
+    def _submit(
+        self,
+        what: str,
+        fn: Callable[[], object],
+        done: Callable[[object], None],
+        failed: Callable[[str], None],
+        wanted: Callable[[], bool],
+    ) -> None:
         """Run ``fn`` on the worker, then ``done(value)`` or ``failed(text)`` here, unless
         ``wanted()`` has turned False meanwhile (a newer take or request)."""
         job = _Job(fn, lambda: not wanted())
@@ -125,9 +130,13 @@ class Session(QObject):
         """Load a clip id or file and corrupt it, on the worker (the latest request wins)."""
         self._opening += 1
         request = self._opening
-        self._submit(f"loading {source}", lambda: open_take(source, corruption, seed), self.set_take,
-                     lambda text: self.message.emit(f"cannot open {source}: {text}"),
-                     lambda: request == self._opening)
+        self._submit(
+            f"loading {source}",
+            lambda: open_take(source, corruption, seed),
+            self.set_take,
+            lambda text: self.message.emit(f"cannot open {source}: {text}"),
+            lambda: request == self._opening,
+        )
 
     def set_take(self, take: Take) -> None:
         """Show ``take`` and run every engine on it."""
@@ -147,8 +156,9 @@ class Session(QObject):
         new = [s for s in specs if s not in self.runs]
         self.specs = specs
         self.runs = {s: r for s, r in self.runs.items() if s in specs}
-        self.current = current if current in specs else (self.current if self.current in specs else
-                                                          (specs[0] if specs else ""))
+        self.current = (
+            current if current in specs else (self.current if self.current in specs else (specs[0] if specs else ""))
+        )
         self.runsChanged.emit()
         self.viewChanged.emit()
         self._run(new)
@@ -159,10 +169,13 @@ class Session(QObject):
             return
         generation = self._generation
         for spec in sorted(specs, key=lambda s: s != self.current):
-            self._submit(f"cleaning with {spec}", lambda spec=spec: run_engine(spec, take),
-                         lambda run: self._arrived(run.spec, run),
-                         lambda text, spec=spec: self._arrived(spec, text),
-                         lambda: generation == self._generation)
+            self._submit(
+                f"cleaning with {spec}",
+                lambda spec=spec: run_engine(spec, take),
+                lambda run: self._arrived(run.spec, run),
+                lambda text, spec=spec: self._arrived(spec, text),
+                lambda: generation == self._generation,
+            )
 
     def _arrived(self, spec: str, run: EngineRun | str) -> None:
         if spec not in self.specs:

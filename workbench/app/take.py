@@ -9,9 +9,9 @@ motion's fps.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from collections.abc import Mapping
 
 import numpy as np
 
@@ -149,8 +149,13 @@ class Take:
         return 0.0, float(max(1.0, np.ceil(np.percentile(self.noisy.errors_cm[:, body], 95))))
 
 
-def make_take(motion: Motion, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, source: str = "",
-              observed: np.ndarray | None = None) -> Take:
+def make_take(
+    motion: Motion,
+    corruption: str = DEFAULT_CORRUPTION,
+    seed: int = 0,
+    source: str = "",
+    observed: np.ndarray | None = None,
+) -> Take:
     """Corrupt a clean ``motion`` with ``corruption`` and ``seed``; with corruption
     ``none`` it is the observation itself (``observed`` mask (F, J) if known), no truth."""
     from ..corruption import make_case, parse_corruption
@@ -162,8 +167,15 @@ def make_take(motion: Motion, corruption: str = DEFAULT_CORRUPTION, seed: int = 
     else:
         truth, observation = None, Observation(motion, observed)
     truth_track = None if truth is None else Track.of(truth, None)
-    return Take(source or motion.name, str(spec), int(seed), observation, truth,
-                Track.of(observation.bridged(), truth), truth_track)
+    return Take(
+        source or motion.name,
+        str(spec),
+        int(seed),
+        observation,
+        truth,
+        Track.of(observation.bridged(), truth),
+        truth_track,
+    )
 
 
 def open_take(source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) -> Take:
@@ -250,6 +262,7 @@ def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str
             note = "running..." if run is None else "failed:\n" + textwrap.fill(run, 34)
             panes.append(Pane(title, ghost=ghost, note=note))
     if not compare:
-        panes.append(Pane("ground truth", note=NO_TRUTH) if ghost is None
-                     else Pane("ground truth", ghost, colour=TRUTH))
+        panes.append(
+            Pane("ground truth", note=NO_TRUTH) if ghost is None else Pane("ground truth", ghost, colour=TRUTH)
+        )
     return panes

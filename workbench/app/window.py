@@ -10,8 +10,18 @@ from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QKeySequence, QShortcut
-from PySide6.QtWidgets import (QComboBox, QHBoxLayout, QLabel, QMainWindow, QProgressBar, QPushButton, QSlider,
-                               QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QHBoxLayout,
+    QLabel,
+    QMainWindow,
+    QProgressBar,
+    QPushButton,
+    QSlider,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
 
 from ..plots.style import error_mappable
 from .controls import ControlPanel
@@ -35,8 +45,9 @@ class ErrorScale(FigureCanvasQTAgg):
     def redraw(self) -> None:
         fig = self.figure
         fig.clear()
-        cbar = fig.colorbar(error_mappable(self.session.take.error_scale_cm()), cax=fig.subplots(),
-                            orientation="horizontal")
+        cbar = fig.colorbar(
+            error_mappable(self.session.take.error_scale_cm()), cax=fig.subplots(), orientation="horizontal"
+        )
         cbar.ax.tick_params(labelsize=7, length=2, pad=1)
         cbar.set_label(self.session.take.error_label, fontsize=7, labelpad=1)
         self.draw_idle()
@@ -118,8 +129,11 @@ class MainWindow(QMainWindow):
         s.message.connect(lambda text: self.statusBar().showMessage(text, MESSAGE_MS))
         s.takeChanged.connect(lambda: self.setWindowTitle(f"mocap workbench · {s.take.source}"))
         self.setWindowTitle("mocap workbench")
-        for key, action in ((Qt.Key_Left, lambda: s.step(-1)), (Qt.Key_Right, lambda: s.step(1)),
-                            (Qt.Key_Space, s.toggle_playing)):
+        for key, action in (
+            (Qt.Key_Left, lambda: s.step(-1)),
+            (Qt.Key_Right, lambda: s.step(1)),
+            (Qt.Key_Space, s.toggle_playing),
+        ):
             QShortcut(QKeySequence(key), self, action)
         QShortcut(QKeySequence.Save, self, self.controls.engines.save.click)  # Ctrl+S
         self.scene.setFocus()  # not a text field, which would take the keys for itself

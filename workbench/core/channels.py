@@ -123,8 +123,8 @@ def _bridge_columns(X: np.ndarray, observed: np.ndarray) -> np.ndarray:
     once (the observed frames around each sample from :func:`_observed_around`)."""
     C = X.shape[1]
     t, before, after = _observed_around(~observed)
-    before = np.where(np.isinf(before), after, before)   # before the first observation: hold it
-    after = np.where(np.isinf(after), before, after)      # after the last: hold it
+    before = np.where(np.isinf(before), after, before)  # before the first observation: hold it
+    after = np.where(np.isinf(after), before, after)  # after the last: hold it
     flat, col = X.ravel(), np.arange(C)
     a, b = flat[before.astype(int) * C + col], flat[after.astype(int) * C + col]
     span = after - before
@@ -157,7 +157,7 @@ def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray) -> np
     observed = np.asarray(observed, bool)
     with np.errstate(invalid="ignore"):
         diff = np.asarray(reference, float) - Y
-        cols = np.flatnonzero((np.abs(diff) >= 180.0).any(axis=0))   # NaN compares False
+        cols = np.flatnonzero((np.abs(diff) >= 180.0).any(axis=0))  # NaN compares False
     if cols.size:
         obs = observed[:, cols]
         turns = np.where(obs, np.round(diff[:, cols] / 360.0), 0.0)

@@ -15,8 +15,15 @@ from __future__ import annotations
 import numpy as np
 
 from .channels import interpolate_gaps
-from .rotations import (euler_to_matrix, kabsch, matrix_to_euler, matrix_to_quaternion, nearest_euler,
-                        quaternion_to_matrix, vectors_to_rotation)
+from .rotations import (
+    euler_to_matrix,
+    kabsch,
+    matrix_to_euler,
+    matrix_to_quaternion,
+    nearest_euler,
+    quaternion_to_matrix,
+    vectors_to_rotation,
+)
 from .skeleton import Skeleton
 
 
@@ -33,16 +40,21 @@ def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray, joints=None) -> 
 
 
 def forward_kinematics(
-    skeleton: Skeleton, root_positions: np.ndarray, angles_deg: np.ndarray, translations: np.ndarray | None = None,
-    *, local: np.ndarray | None = None
+    skeleton: Skeleton,
+    root_positions: np.ndarray,
+    angles_deg: np.ndarray,
+    translations: np.ndarray | None = None,
+    *,
+    local: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """World joint positions (F, J, 3) and world rotations (F, J, 3, 3) from the root
     positions (F, 3), the angles (F, J, 3) and the translations (F, T, 3) of the
     skeleton's translated joints, which take the place of their offsets (needed when it
     has any). ``local``: the angles' :func:`local_rotations`, when the caller has them."""
     if skeleton.translated and translations is None:
-        raise ValueError(f"the skeleton has {len(skeleton.translated)} translated joints: FK needs their "
-                         "translations (F, T, 3)")
+        raise ValueError(
+            f"the skeleton has {len(skeleton.translated)} translated joints: FK needs their translations (F, T, 3)"
+        )
     R_local = local_rotations(skeleton, np.asarray(angles_deg, float)) if local is None else local
     F, J = R_local.shape[:2]
     R = np.empty_like(R_local)
@@ -86,8 +98,13 @@ def _bridged_departure(R_aimed: np.ndarray, R_ref: np.ndarray, kept: np.ndarray)
 
 
 def inverse_kinematics(
-    skeleton: Skeleton, positions: np.ndarray, reference_angles_deg: np.ndarray | None = None, *,
-    reference_local: np.ndarray | None = None, reference_joints=(), reference_frames: np.ndarray | None = None
+    skeleton: Skeleton,
+    positions: np.ndarray,
+    reference_angles_deg: np.ndarray | None = None,
+    *,
+    reference_local: np.ndarray | None = None,
+    reference_joints=(),
+    reference_frames: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint angles that place the skeleton's joints at ``positions`` (F, J, 3) as well as
     its fixed bone lengths allow.

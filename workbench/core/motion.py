@@ -108,28 +108,45 @@ class Motion:
         """(F, 3 + 3J + 3T) root position, every joint's Euler angles, then the
         translations (a copy)."""
         F = self.n_frames
-        return np.concatenate([self.root_positions, self.angles_deg.reshape(F, -1), self.translations.reshape(F, -1)],
-                              axis=1)
+        return np.concatenate(
+            [self.root_positions, self.angles_deg.reshape(F, -1), self.translations.reshape(F, -1)], axis=1
+        )
 
     def with_channels(self, channels: np.ndarray) -> "Motion":
         """A Motion with the same skeleton and fps from a (F', 3 + 3J + 3T) channel matrix."""
         channels = np.asarray(channels, dtype=float)
         F, angles = channels.shape[0], angle_slice(self.skeleton)
         if channels.ndim != 2 or channels.shape[1] != channel_count(self.skeleton):
-            raise ValueError(f"a channel matrix of this skeleton is (F, {channel_count(self.skeleton)}), "
-                             f"got {channels.shape}")
-        return Motion(self.skeleton, self.fps, channels[:, :3], channels[:, angles].reshape(F, -1, 3), self.name,
-                      channels[:, angles.stop:].reshape(F, -1, 3))
+            raise ValueError(
+                f"a channel matrix of this skeleton is (F, {channel_count(self.skeleton)}), got {channels.shape}"
+            )
+        return Motion(
+            self.skeleton,
+            self.fps,
+            channels[:, :3],
+            channels[:, angles].reshape(F, -1, 3),
+            self.name,
+            channels[:, angles.stop :].reshape(F, -1, 3),
+        )
 
     def replace(self, **changes) -> "Motion":
-        fields = dict(skeleton=self.skeleton, fps=self.fps, root_positions=self.root_positions,
-                      angles_deg=self.angles_deg, name=self.name, translations=self.translations)
+        fields = dict(
+            skeleton=self.skeleton,
+            fps=self.fps,
+            root_positions=self.root_positions,
+            angles_deg=self.angles_deg,
+            name=self.name,
+            translations=self.translations,
+        )
         fields.update(changes)
         return Motion(**fields)
 
     def slice(self, start: int, stop: int | None = None) -> "Motion":
-        return self.replace(root_positions=self.root_positions[start:stop], angles_deg=self.angles_deg[start:stop],
-                            translations=self.translations[start:stop])
+        return self.replace(
+            root_positions=self.root_positions[start:stop],
+            angles_deg=self.angles_deg[start:stop],
+            translations=self.translations[start:stop],
+        )
 
     def allclose(self, other: "Motion", atol: float = 1e-4) -> bool:
         """Same skeleton layout and fps, and every value equal within ``atol`` (angles
@@ -159,7 +176,7 @@ def angle_slice(skeleton: Skeleton) -> slice:
 def length_columns(skeleton: Skeleton) -> np.ndarray:
     """Column indices into the channel matrix of the channels in file units, not degrees:
     the root position and the translations."""
-    return np.r_[0:3, 3 + 3 * skeleton.n_joints:channel_count(skeleton)]
+    return np.r_[0:3, 3 + 3 * skeleton.n_joints : channel_count(skeleton)]
 
 
 def channel_joints(skeleton: Skeleton) -> np.ndarray:

@@ -78,12 +78,16 @@ class Skeleton:
         for j, ch in enumerate(self.channels):
             self._validate_channels(self.names[j], ch)
         if J and positioned[0] and np.any(offsets[0] != 0):
-            raise ValueError(f"root {self.names[0]!r} has position channels, so its offset must be zero "
-                             "(its OFFSET line goes in file_offsets)")
+            raise ValueError(
+                f"root {self.names[0]!r} has position channels, so its offset must be zero "
+                "(its OFFSET line goes in file_offsets)"
+            )
         if list(self.translated) != sorted(set(self.translated)) or not all(
-                0 < j < J and positioned[j] for j in self.translated):
-            raise ValueError(f"translated joints must be ascending non-root joints with position channels, "
-                             f"got {self.translated}")
+            0 < j < J and positioned[j] for j in self.translated
+        ):
+            raise ValueError(
+                f"translated joints must be ascending non-root joints with position channels, got {self.translated}"
+            )
         if self.unit_cm <= 0:
             object.__setattr__(self, "unit_cm", guess_unit_cm(self))
 
@@ -195,7 +199,9 @@ class Skeleton:
         """A short string naming the topology and channel layout (not the bone lengths),
         and the translated joints, which widen the channel matrix: two skeletons with
         equal signatures can share a trained engine."""
-        parts = [f"{n}<{p}>{''.join(c[0] + c[1] for c in ch)}" for n, p, ch in zip(self.names, self.parents, self.channels)]
+        parts = [
+            f"{n}<{p}>{''.join(c[0] + c[1] for c in ch)}" for n, p, ch in zip(self.names, self.parents, self.channels)
+        ]
         if self.translated:
             parts.append("translated:" + ",".join(self.names[j] for j in self.translated))
         return ";".join(parts)

@@ -118,8 +118,10 @@ class Work:
         frames = int(math.floor(frames + 0.5)) if integer else frames
         least = lo if p.kind == "frame" or value.value == 0 else max(lo, 1.0)  # a span of some seconds: a frame
         if frames < least:
-            raise CorruptionApplyError(f"{model}: {p.name} = {value} is {format_number(frames)} frames at "
-                                       f"{self.clean.fps:g} fps; it must be at least {format_number(least)}")
+            raise CorruptionApplyError(
+                f"{model}: {p.name} = {value} is {format_number(frames)} frames at "
+                f"{self.clean.fps:g} fps; it must be at least {format_number(least)}"
+            )
         return frames
 
     @property
@@ -187,8 +189,9 @@ class Model:
                 raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, not a time in seconds ({value})")
             least = 0.0 if lo == 0 else math.nextafter(0.0, 1.0)  # a span must last; a frame index may be 0
             if not (math.isfinite(value.value) and least <= value.value):
-                raise CorruptionSpecError(f"{cls.name}: {p.name} must be {'>= 0' if lo == 0 else '> 0'} "
-                                          f"seconds, got {value}")
+                raise CorruptionSpecError(
+                    f"{cls.name}: {p.name} must be {'>= 0' if lo == 0 else '> 0'} seconds, got {value}"
+                )
             return Seconds(value.value + 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {value!r}")
@@ -218,7 +221,8 @@ class Model:
             want = f"{n_req}" if n_req == n_all else f"{n_req} to {n_all}"
             raise CorruptionSpecError(
                 f"{cls.name}: takes {want} parameter{'s' if n_all > 1 else ''} ({names}), got {len(args)}; "
-                f"usage: {cls.signature()}")
+                f"usage: {cls.signature()}"
+            )
         values: list[Any] = []
         for p, text in zip(cls.params, args):
             text = text.strip()
@@ -228,7 +232,8 @@ class Model:
             except ValueError:
                 what = _KINDS[p.kind][0] + (" (or seconds, as in 2s)" if p.kind in FRAME_KINDS else "")
                 raise CorruptionSpecError(
-                    f"{cls.name}: {p.name} must be {what}, got {text!r}; usage: {cls.signature()}") from None
+                    f"{cls.name}: {p.name} must be {what}, got {text!r}; usage: {cls.signature()}"
+                ) from None
             values.append(Seconds(number) if seconds else number)
         return cls(*values)  # type: ignore[call-arg]
 

@@ -28,11 +28,15 @@ class Gaps(Model):
     frames; a gap is cut at the end of the clip. Gaps may overlap."""
 
     name = "gaps"
-    description = ("a gap starts at each (frame, non-root joint) with probability P; length exponential "
-                   "with mean MEAN frames (at least 1), capped at MAX frames")
-    params = (Param("P", "prob", "probability that a gap starts at a given frame and joint"),
-              Param("MEAN", "mean-frames", "mean gap length, frames", 12.0),
-              Param("MAX", "frames", "longest gap, frames", 600))
+    description = (
+        "a gap starts at each (frame, non-root joint) with probability P; length exponential "
+        "with mean MEAN frames (at least 1), capped at MAX frames"
+    )
+    params = (
+        Param("P", "prob", "probability that a gap starts at a given frame and joint"),
+        Param("MEAN", "mean-frames", "mean gap length, frames", 12.0),
+        Param("MAX", "frames", "longest gap, frames", 600),
+    )
     p: float
     mean: float | Seconds = 12.0
     max: int | Seconds = 600
@@ -64,10 +68,14 @@ class Block(Model):
     must obey the same rule. The clip needs at least N + 2 frames."""
 
     name = "block"
-    description = ("N consecutive frames missing for all joints (root too), placed at random with an observed "
-                   "frame on each side, or starting at frame START")
-    params = (Param("N", "frame-count", "number of missing frames"),
-              Param("START", "frame", "first missing frame (default: random)", None))
+    description = (
+        "N consecutive frames missing for all joints (root too), placed at random with an observed "
+        "frame on each side, or starting at frame START"
+    )
+    params = (
+        Param("N", "frame-count", "number of missing frames"),
+        Param("START", "frame", "first missing frame (default: random)", None),
+    )
     n: int | Seconds
     start: int | Seconds | None = None
 
@@ -76,19 +84,21 @@ class Block(Model):
         if n_frames < n + 2:
             raise CorruptionApplyError(
                 f"{self} needs a clip of at least {n + 2} frames (the block plus one observed frame on "
-                f"each side); this one has {n_frames}")
+                f"each side); this one has {n_frames}"
+            )
         if self.start is None:
             return int(rng.integers(1, n_frames - n))
         start = work.frames(self, "start")
         if not 1 <= start <= n_frames - n - 1:
             raise CorruptionApplyError(
                 f"{self}: START must leave an observed frame on each side of the block, i.e. lie in "
-                f"1..{n_frames - n - 1} for this {n_frames}-frame clip; got {start}")
+                f"1..{n_frames - n - 1} for this {n_frames}-frame clip; got {start}"
+            )
         return start
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
         s = self.first_frame(work, rng)
-        work.observed[s:s + work.frames(self, "n")] = False
+        work.observed[s : s + work.frames(self, "n")] = False
 
 
 @dataclass(frozen=True)
@@ -110,7 +120,8 @@ class Joints(Model):
         if self.n > eligible.size:
             raise CorruptionApplyError(
                 f"{self}: this skeleton has only {eligible.size} non-root joints whose angles vary; "
-                f"N must be at most {eligible.size}")
+                f"N must be at most {eligible.size}"
+            )
         chosen = rng.choice(eligible, size=self.n, replace=False)
         work.observed[:, chosen] = False
 

@@ -73,10 +73,14 @@ class Spatial(Model):
 @dataclass(frozen=True)
 class SpatialEnds(Model):
     name = "spatial-ends"
-    description = ("spatial noise with std A cm at the wrists and ankles (joints named like LeftHand, rFoot) "
-                   "and B cm at every other joint")
-    params = (Param("A", "cm", "position noise std at wrists and ankles, cm"),
-              Param("B", "cm", "position noise std at the other joints, cm"))
+    description = (
+        "spatial noise with std A cm at the wrists and ankles (joints named like LeftHand, rFoot) "
+        "and B cm at every other joint"
+    )
+    params = (
+        Param("A", "cm", "position noise std at wrists and ankles, cm"),
+        Param("B", "cm", "position noise std at the other joints, cm"),
+    )
     a: float
     b: float
 
@@ -85,7 +89,8 @@ class SpatialEnds(Model):
         if not ends:
             raise CorruptionApplyError(
                 f"{self.name}: the skeleton has no wrist or ankle joint (names such as LeftHand, RightFoot, "
-                f"lHand, rFoot, Left_Wrist, r_ankle); its joints are {', '.join(skeleton.names)}")
+                f"lHand, rFoot, Left_Wrist, r_ankle); its joints are {', '.join(skeleton.names)}"
+            )
         sigma = np.full(skeleton.n_joints, self.b)
         sigma[ends] = self.a
         return sigma

@@ -23,8 +23,7 @@ from .spatial import Spatial, SpatialEnds
 #: name -> model class, in help-text order. Each class has ``description`` (one line),
 #: ``params`` (name, kind, help, default) and ``signature()`` (e.g. ``gaps:P[,MEAN[,MAX]]``).
 MODELS: dict[str, type[Model]] = {
-    cls.name: cls
-    for cls in (Angular, Uniform, Bias, Sine, Spatial, SpatialEnds, Outliers, Gaps, Block, Joints, Drop)
+    cls.name: cls for cls in (Angular, Uniform, Bias, Sine, Spatial, SpatialEnds, Outliers, Gaps, Block, Joints, Drop)
 }
 
 NONE = "none"
@@ -90,7 +89,8 @@ def _check_finite(motion: Motion) -> None:
     if bad.size:
         raise CorruptionApplyError(
             f"the clean motion {motion.name!r} has non-finite values (NaN or inf) in {bad.size} frame(s), "
-            f"first at frame {bad[0]}; corruption needs a complete clean clip")
+            f"first at frame {bad[0]}; corruption needs a complete clean clip"
+        )
 
 
 def parse_corruption(text: "str | Corruption") -> Corruption:
@@ -115,7 +115,8 @@ def parse_corruption(text: "str | Corruption") -> Corruption:
         cls = MODELS.get(key)
         if cls is None:
             raise CorruptionSpecError(
-                f"unknown corruption model {name.strip()!r} in {text!r}; valid models: {_valid_models()}")
+                f"unknown corruption model {name.strip()!r} in {text!r}; valid models: {_valid_models()}"
+            )
         arg_list = args.split(",") if colon and args.strip() else []
         try:
             models.append(cls.from_args(arg_list))

@@ -35,9 +35,9 @@ SPLITS_DIR = Path(__file__).resolve().parent / "splits"
 #: the terms of the team's data sets (their READMEs); weights trained on one inherit them
 DATASET_TERMS = {
     "cmu": "CMU Graphics Lab Motion Capture Database terms: free for research and commercial use, the raw data "
-           "not for resale; credit mocap.cs.cmu.edu (NSF EIA-0196217)",
+    "not for resale; credit mocap.cs.cmu.edu (NSF EIA-0196217)",
     "cmu-daz": "CMU Graphics Lab Motion Capture Database terms (a conversion of CMU takes): free for research and "
-               "commercial use, the raw data not for resale; credit mocap.cs.cmu.edu (NSF EIA-0196217)",
+    "commercial use, the raw data not for resale; credit mocap.cs.cmu.edu (NSF EIA-0196217)",
     "bandai": "CC BY-NC 4.0, non-commercial: Bandai-Namco-Research-Motiondataset, Bandai Namco Research Inc.",
 }
 
@@ -46,6 +46,8 @@ def dataset_terms(dataset: str) -> str:
     """The licence of a data set by name; for one the team does not know, a line saying
     so (a user's own data: its terms are the user's)."""
     return DATASET_TERMS.get(dataset, "unknown: the terms of this data set are its owner's")
+
+
 #: the splits a clip can be in, in listing order ("" for a dataset without a split file)
 SPLITS = ("train", "validation", "test")
 
@@ -128,7 +130,9 @@ def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
         rel = path.relative_to(folder).as_posix()
         clips.append(
             Clip(
-                id=f"{dataset}/{Path(rel).with_suffix('').as_posix()}" if dataset else Path(rel).with_suffix("").as_posix(),
+                id=f"{dataset}/{Path(rel).with_suffix('').as_posix()}"
+                if dataset
+                else Path(rel).with_suffix("").as_posix(),
                 path=path,
                 dataset=dataset,
                 category=path.parent.name if path.parent != folder else "",
@@ -155,8 +159,9 @@ def catalogue(root: str | Path | None = None) -> list[Clip]:
     return sorted(clips, key=lambda c: c.id)
 
 
-def select(clips: list[Clip], split: str | None = None, dataset: str | None = None,
-           pattern: str | None = None) -> list[Clip]:
+def select(
+    clips: list[Clip], split: str | None = None, dataset: str | None = None, pattern: str | None = None
+) -> list[Clip]:
     """Filter clips: ``split`` one of :data:`SPLITS` or "all", ``dataset`` name,
     ``pattern`` a glob on the clip id (``cmu/walk/*``)."""
     out = clips

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.motion import Motion
 from ..core.kinematics import local_rotations
+from ..core.motion import Motion
 from ..core.rotations import rotation_angle_deg
 
 #: degrees per second no human joint turns faster than (a pitcher's shoulder: ~7,000)

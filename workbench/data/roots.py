@@ -74,8 +74,10 @@ def find_data_root(explicit: str | Path | None = None) -> Path:
             if not folder.is_dir():
                 raise DataNotFoundError(f"{origin} points at {folder}, which is not a folder")
             if not _has_motion_files(folder):
-                raise DataNotFoundError(f"{origin} points at {folder}, which holds no .bvh or .amc file "
-                                        "(nor a MANIFEST.csv); point it at a folder of motion files")
+                raise DataNotFoundError(
+                    f"{origin} points at {folder}, which holds no .bvh or .amc file "
+                    "(nor a MANIFEST.csv); point it at a folder of motion files"
+                )
         if _has_motion_files(folder):
             return folder.resolve()
         looked.append(f"  {origin:15s} {folder}")

@@ -14,8 +14,38 @@ the toolkit they share. Engines import from here and from the rest of the public
   ``fit`` or ``clean`` only).
 """
 
-from .base import (INFERENCE, SPACES, TASKS, TRAINED, TRAINING, WEIGHTS_OPTION, CleanResult, Engine, EngineError,
-                   EngineInfo, NotFittedError, Pipeline, param_roles, trained, training)
+from .base import (
+    INFERENCE,
+    SPACES,
+    TASKS,
+    TRAINED,
+    TRAINING,
+    WEIGHTS_OPTION,
+    CleanResult,
+    Engine,
+    EngineError,
+    EngineInfo,
+    NotFittedError,
+    Pipeline,
+    param_roles,
+    trained,
+    training,
+)
 
-__all__ = ["Engine", "EngineInfo", "CleanResult", "EngineError", "NotFittedError", "Pipeline", "TASKS", "SPACES",
-           "WEIGHTS_OPTION", "trained", "training", "param_roles", "TRAINED", "TRAINING", "INFERENCE"]
+__all__ = [
+    "Engine",
+    "EngineInfo",
+    "CleanResult",
+    "EngineError",
+    "NotFittedError",
+    "Pipeline",
+    "TASKS",
+    "SPACES",
+    "WEIGHTS_OPTION",
+    "trained",
+    "training",
+    "param_roles",
+    "TRAINED",
+    "TRAINING",
+    "INFERENCE",
+]

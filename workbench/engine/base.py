@@ -64,6 +64,8 @@ def param_roles(params: typing.Any) -> dict[str, str]:
 def _of_role(params: typing.Any, role: str) -> dict[str, typing.Any]:
     """The values of the parameters of ``params`` with ``role``, by name."""
     return {name: getattr(params, name) for name, r in param_roles(params).items() if r == role}
+
+
 #: the engines to point a user to for takes no trained engine models (translated joints)
 CLASSICAL = "kalman, gaussian, butterworth, lerp, spline"
 
@@ -209,25 +211,34 @@ class Engine:
         first = motions[0]
         for m in motions[1:]:
             if m.skeleton.signature() != first.skeleton.signature():
-                raise EngineError(f"engine {name!r} trains on one skeleton layout; {first.name or 'motion 0'} "
-                                  f"and {m.name or 'another'} have different ones")
+                raise EngineError(
+                    f"engine {name!r} trains on one skeleton layout; {first.name or 'motion 0'} "
+                    f"and {m.name or 'another'} have different ones"
+                )
             if same_fps and abs(m.fps - first.fps) > 1e-6:
-                raise EngineError(f"engine {name!r}: the training motions mix frame rates "
-                                  f"({first.fps:g} and {m.fps:g} fps)")
+                raise EngineError(
+                    f"engine {name!r}: the training motions mix frame rates ({first.fps:g} and {m.fps:g} fps)"
+                )
         if first.skeleton.translated:
-            raise EngineError(f"engine {name!r} cannot be trained on skeletons with translated joints yet "
-                              f"({_moving(first.skeleton)}); clean such takes with a classical engine: "
-                              f"{CLASSICAL}")
+            raise EngineError(
+                f"engine {name!r} cannot be trained on skeletons with translated joints yet "
+                f"({_moving(first.skeleton)}); clean such takes with a classical engine: "
+                f"{CLASSICAL}"
+            )
         return motions
 
     def check_skeleton(self, skeleton: Skeleton) -> None:
         """Raise EngineError if this engine was fitted for another skeleton layout."""
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
-            mine = (f"engine {self.info.name!r} was trained for another skeleton ({self.skeleton_description_}); "
-                    f"this take has {skeleton.n_joints} joints rooted at {skeleton.names[0]!r}")
+            mine = (
+                f"engine {self.info.name!r} was trained for another skeleton ({self.skeleton_description_}); "
+                f"this take has {skeleton.n_joints} joints rooted at {skeleton.names[0]!r}"
+            )
             if skeleton.translated:  # no trained engine models them yet
-                raise EngineError(f"{mine}, and joints it cannot model yet: {_moving(skeleton)}. "
-                                  f"Clean it with a classical engine: {CLASSICAL}.")
+                raise EngineError(
+                    f"{mine}, and joints it cannot model yet: {_moving(skeleton)}. "
+                    f"Clean it with a classical engine: {CLASSICAL}."
+                )
             raise EngineError(
                 f"{mine}. Train it on takes of this skeleton "
                 f"(`workbench train {self.info.name} --data DIR --out FOLDER`) and clean with "
@@ -243,8 +254,7 @@ class Engine:
     def require_fitted(self) -> None:
         if self.info.trainable and self.skeleton_signature_ is None:
             raise NotFittedError(
-                f"engine {self.spec!r} is not trained: run `workbench train '{self.spec}'` "
-                f"or give it weights"
+                f"engine {self.spec!r} is not trained: run `workbench train '{self.spec}'` or give it weights"
             )
 
     # -- fitted state ---------------------------------------------------------------
@@ -285,7 +295,9 @@ class Engine:
 
         arrays, manifest = load_weights(folder)
         if manifest.get("engine") != self.info.name:
-            raise EngineError(f"{folder}: these weights are for engine {manifest.get('engine')!r}, not {self.info.name!r}")
+            raise EngineError(
+                f"{folder}: these weights are for engine {manifest.get('engine')!r}, not {self.info.name!r}"
+            )
         self.params = self.weights_params(manifest, folder)
         self.load_state_arrays(arrays, manifest)
         self.skeleton_signature_ = manifest["skeleton_signature"]
@@ -300,14 +312,18 @@ class Engine:
         roles = param_roles(default)
         unknown = sorted(set(saved) - set(roles))
         if unknown:
-            raise EngineError(f"{folder}: these weights record parameters engine {self.info.name!r} does not have "
-                              f"({', '.join(unknown)}): they are from another version of it; retrain them")
+            raise EngineError(
+                f"{folder}: these weights record parameters engine {self.info.name!r} does not have "
+                f"({', '.join(unknown)}): they are from another version of it; retrain them"
+            )
         fixed = {k: saved.get(k, getattr(default, k)) for k, role in roles.items() if role != INFERENCE}
         asked = {k: v for k, v in _of_role(self.params, TRAINED).items() if v != getattr(default, k) and v != fixed[k]}
         if asked:
-            raise EngineError(f"engine {self.info.name!r}: these weights were trained with "
-                              f"{ {k: fixed[k] for k in asked} }, not {asked}; train this variant first "
-                              f"(`workbench train SPEC --out FOLDER`, then add {WEIGHTS_OPTION}=FOLDER to the spec)")
+            raise EngineError(
+                f"engine {self.info.name!r}: these weights were trained with "
+                f"{ {k: fixed[k] for k in asked} }, not {asked}; train this variant first "
+                f"(`workbench train SPEC --out FOLDER`, then add {WEIGHTS_OPTION}=FOLDER to the spec)"
+            )
         return dataclasses.replace(self.params, **fixed)
 
     @property

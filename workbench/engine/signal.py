@@ -26,8 +26,17 @@ import scipy.fft as sfft
 from ..core.channels import forward_fill, interpolate_gaps, rewrap_deg, unwrap_deg
 from ..core.motion import Observation, angle_slice
 
-__all__ = ["Prepared", "prepare", "bridge_gaps", "rewrap_angles", "fill_gaps", "TRUNCATE",
-           "gaussian_kernel", "convolve_time", "normalized_gaussian"]
+__all__ = [
+    "Prepared",
+    "prepare",
+    "bridge_gaps",
+    "rewrap_angles",
+    "fill_gaps",
+    "TRUNCATE",
+    "gaussian_kernel",
+    "convolve_time",
+    "normalized_gaussian",
+]
 
 
 @dataclass(frozen=True)
@@ -68,7 +77,7 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
     # only a column spanning 180 degrees or more can step by that much between samples
     first = angle_slice(observation.skeleton).start
     angles = raw[:, angle_slice(observation.skeleton)]
-    span = np.fmax.reduce(angles, axis=0) - np.fmin.reduce(angles, axis=0)    # NaN-ignoring
+    span = np.fmax.reduce(angles, axis=0) - np.fmin.reduce(angles, axis=0)  # NaN-ignoring
     wide = np.flatnonzero(span >= 180.0)
     wrapped = np.zeros(0, int)
     if wide.size:
@@ -132,11 +141,12 @@ def convolve_time(A: np.ndarray, kernel: np.ndarray) -> np.ndarray:
         return A * kernel[0]
     n = sfft.next_fast_len(F + 2 * radius, real=True)
     spec = sfft.rfft(A, n=n, axis=0) * sfft.rfft(kernel, n=n)[:, None]
-    return sfft.irfft(spec, n=n, axis=0)[radius:radius + F]
+    return sfft.irfft(spec, n=n, axis=0)[radius : radius + F]
 
 
-def normalized_gaussian(X: np.ndarray, certainty: np.ndarray, sigma_frames: float,
-                        columns: np.ndarray | None = None) -> np.ndarray:
+def normalized_gaussian(
+    X: np.ndarray, certainty: np.ndarray, sigma_frames: float, columns: np.ndarray | None = None
+) -> np.ndarray:
     """Normalised convolution of the columns of ``X`` (F, D) with a Gaussian of std
     ``sigma_frames``: ``G*(c X) / G*c``, zero padded outside the clip. ``certainty`` is
     (F, K): column ``columns[d]`` of it (default: d) is the certainty of column d of X;

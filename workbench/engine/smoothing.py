@@ -87,18 +87,18 @@ def _smooth_complete(Y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     if n - F > 3:
         n = F
     m = 2 + n - F
-    mu = 2.0 - 2.0 * np.cos(np.pi * np.arange(n) / n)        # eigenvalues of the Laplacian L
-    h = 1.0 / (1.0 + (mu ** 2)[:, None] * lam[None, :])      # (n, D) gains of A^-1 = (I + lam L^2)^-1
+    mu = 2.0 - 2.0 * np.cos(np.pi * np.arange(n) / n)  # eigenvalues of the Laplacian L
+    h = 1.0 / (1.0 + (mu**2)[:, None] * lam[None, :])  # (n, D) gains of A^-1 = (I + lam L^2)^-1
     # M = A - V S V':  V = [u, w, e_F, .., e_{n-1}],  S = diag(lam, lam, 1, .., 1)
     V = np.zeros((n, m))
     V[0, 0], V[1, 0], V[-1, 1], V[-2, 1] = 1.0, -1.0, 1.0, -1.0
     V[np.arange(F, n), np.arange(2, m)] = 1.0
-    Cv = sfft.dct(V, type=2, norm="ortho", axis=0)           # (n, m)
+    Cv = sfft.dct(V, type=2, norm="ortho", axis=0)  # (n, m)
     Yp = Y if n == F else np.concatenate([Y, np.zeros((n - F, D))])
     hY = h * sfft.dct(Yp, type=2, norm="ortho", axis=0)
     # Woodbury: M^-1 y = A^-1 y + A^-1 V (S^-1 - V'A^-1 V)^-1 V'A^-1 y
     i, j = np.triu_indices(m)
-    g = (Cv[:, i] * Cv[:, j]).T @ h                          # (pairs, D)
+    g = (Cv[:, i] * Cv[:, j]).T @ h  # (pairs, D)
     G = np.empty((D, m, m))
     G[:, i, j] = g.T
     G[:, j, i] = g.T
@@ -106,8 +106,8 @@ def _smooth_complete(Y: np.ndarray, lam: np.ndarray) -> np.ndarray:
     sinv = np.ones((D, m))
     sinv[:, :2] = (1.0 / lam)[:, None]
     G[:, np.arange(m), np.arange(m)] += sinv
-    t = (Cv.T @ hY).T                                        # (D, m)
-    c = np.linalg.solve(G, t[:, :, None])[:, :, 0]           # (D, m)
+    t = (Cv.T @ hY).T  # (D, m)
+    c = np.linalg.solve(G, t[:, :, None])[:, :, 0]  # (D, m)
     hY += h * (Cv @ c.T)
     return sfft.idct(hY, type=2, norm="ortho", axis=0)[:F]
 
@@ -132,9 +132,9 @@ def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.nda
     """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky."""
     F, D = Y.shape
     ir = 1.0 / r
-    ab = second_difference_band(F)[:, None, :] * (1.0 / q)[None, :, None]      # (3, D, F)
+    ab = second_difference_band(F)[:, None, :] * (1.0 / q)[None, :, None]  # (3, D, F)
     ab[0] += observed.T * ir[:, None]
-    b = np.where(observed, Y, 0.0).T * ir[:, None]           # (D, F)
+    b = np.where(observed, Y, 0.0).T * ir[:, None]  # (D, F)
     x = solveh_banded(ab.reshape(3, -1), b.reshape(-1), lower=True, check_finite=False)
     return x.reshape(D, F).T
 
@@ -153,7 +153,7 @@ def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = Tru
     F, D = Y.shape
     if F < 3:
         return np.full(D, R_FLOOR)
-    d2 = np.abs(Y[2:] - 2.0 * Y[1:-1] + Y[:-2]).T           # (D, F-2)
+    d2 = np.abs(Y[2:] - 2.0 * Y[1:-1] + Y[:-2]).T  # (D, F-2)
     ok = (observed[2:] & observed[1:-1] & observed[:-2]).T
     if not robust:
         n = ok.sum(axis=1)
@@ -186,10 +186,10 @@ def smoothing_ratio(Y: np.ndarray, r: np.ndarray, observed_fraction: np.ndarray 
     if N < 4:
         return np.full(D, LAMBDA_GRID[0])
     t = np.arange(N, dtype=float)[:, None] / (N - 1)
-    Z = Y - (Y[:1] + (Y[-1:] - Y[:1]) * t)            # starts and ends at 0: pad with zeros
+    Z = Y - (Y[:1] + (Y[-1:] - Y[:1]) * t)  # starts and ends at 0: pad with zeros
     n = sfft.next_fast_len(N, real=True)
-    spec = sfft.rfft(np.ascontiguousarray(Z.T), n=n, axis=1)            # (D, K)
-    P = (spec.real ** 2 + spec.imag ** 2) / n                           # sum_k w_k P_k = ||Z||^2
+    spec = sfft.rfft(np.ascontiguousarray(Z.T), n=n, axis=1)  # (D, K)
+    P = (spec.real**2 + spec.imag**2) / n  # sum_k w_k P_k = ||Z||^2
     K = P.shape[1]
     w = np.full(K, 2.0)
     w[0] = 1.0
@@ -197,9 +197,9 @@ def smoothing_ratio(Y: np.ndarray, r: np.ndarray, observed_fraction: np.ndarray 
         w[-1] = 1.0
     omega = 2.0 * np.pi * np.arange(K) / n
     g = (2.0 - 2.0 * np.cos(omega)) ** 2
-    H = 1.0 / (1.0 + LAMBDA_GRID[:, None] * g[None, :])                  # (L, K)
-    fit = ((1.0 - H) ** 2 * w) @ P.T / N                                  # (L, D)
-    dof = (H * w).sum(axis=1) / n                                         # (L,) mean gain
+    H = 1.0 / (1.0 + LAMBDA_GRID[:, None] * g[None, :])  # (L, K)
+    fit = ((1.0 - H) ** 2 * w) @ P.T / N  # (L, D)
+    dof = (H * w).sum(axis=1) / n  # (L,) mean gain
     r_eff = np.asarray(r, float) * observed_fraction
     risk = fit + 2.0 * r_eff[None, :] * dof[:, None]
     return LAMBDA_GRID[np.argmin(risk, axis=0)]
@@ -230,8 +230,9 @@ def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return interpolate_gaps(smooth_and_fill(Y, observed), observed)
 
 
-def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.ndarray,
-                        smoothed: np.ndarray | None = None) -> np.ndarray:
+def smooth_joint_angles(
+    channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, smoothed: np.ndarray | None = None
+) -> np.ndarray:
     """A copy of the channel matrix ``channels`` (F, 3 + 3J, gaps bridged) with the angles
     of ``joints`` smoothed by :func:`smooth_observed` where the joints are ``observed``
     (F, J) and bridged linearly across their holes. ``smoothed``: the channels'
@@ -239,8 +240,9 @@ def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.n
     out = np.array(channels, float)
     cols = joint_angle_columns(joints)
     mask = np.repeat(np.asarray(observed, bool)[:, joints], 3, axis=1)
-    out[:, cols] = interpolate_gaps(smooth_and_fill(out[:, cols], mask) if smoothed is None else smoothed[:, cols],
-                                    mask)
+    out[:, cols] = interpolate_gaps(
+        smooth_and_fill(out[:, cols], mask) if smoothed is None else smoothed[:, cols], mask
+    )
     return out
 
 
@@ -250,22 +252,24 @@ def smooth_joint_angles(channels: np.ndarray, observed: np.ndarray, joints: np.n
 OUTLIER_VARIANCE_RATIO = 3.0
 
 
-def angle_noise(skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray,
-                robust: bool = True) -> np.ndarray:
+def angle_noise(
+    skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, robust: bool = True
+) -> np.ndarray:
     """The noise of the observed angles of ``joints`` (n,) (each aimed at one descendant)
     as the descendant sees it, (n,) in file units^2: their variance in rad^2
     (:func:`measurement_variance`; ``robust`` False: the mean square, which counts
     outliers) times the lever^2. ``channels`` (F, 3 + 3J) degrees, gaps bridged;
     ``observed`` (F, J)."""
     children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
-    seen = np.repeat(observed[:, joints], 3, axis=1)                          # (F, 3n)
+    seen = np.repeat(observed[:, joints], 3, axis=1)  # (F, 3n)
     lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[children] ** 2, axis=1)
     variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, robust)
     return variance.reshape(len(joints), 3).mean(axis=1) * lever2
 
 
-def angle_and_position_noise(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
-                             joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def angle_and_position_noise(
+    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The noise of ``joints`` (n,) (each aimed at one descendant) as their descendant sees
     it, each (n,) in file units^2: through the observed angles (:func:`angle_noise`),
     the same from the mean square (it counts outliers), and in the descendant's observed
@@ -276,12 +280,16 @@ def angle_and_position_noise(skeleton, channels: np.ndarray, observed: np.ndarra
     n = len(joints)
     relative = (positions[:, children] - positions[:, joints]).reshape(len(positions), 3 * n)
     both = np.repeat(observed[:, joints] & observed[:, children], 3, axis=1)
-    return (angle_noise(skeleton, channels, observed, joints), angle_noise(skeleton, channels, observed, joints, False),
-            measurement_variance(relative, both).reshape(n, 3).mean(axis=1))
+    return (
+        angle_noise(skeleton, channels, observed, joints),
+        angle_noise(skeleton, channels, observed, joints, False),
+        measurement_variance(relative, both).reshape(n, 3).mean(axis=1),
+    )
 
 
-def angles_are_quieter(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
-                       joints) -> np.ndarray:
+def angles_are_quieter(
+    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints
+) -> np.ndarray:
     """Which of ``joints`` (n,) (each aimed at one descendant) are better told by their
     observed angles than by the observed positions, (n,) bool: the angles' noise, as the
     moved descendant sees it, is below the noise of the descendant's position seen from
@@ -308,12 +316,19 @@ def _measured_joints(skeleton, observed: np.ndarray, short_lever_cm: float) -> n
     """The joints whose noise tells a take's: aimed at one descendant beyond
     ``short_lever_cm`` and observed somewhere."""
     short = short_lever_joints(skeleton, short_lever_cm)
-    return np.array([j for j in range(1, skeleton.n_joints) if len(skeleton.aimed_descendants[j]) == 1
-                     and j not in short and observed[:, j].any()], int)
+    return np.array(
+        [
+            j
+            for j in range(1, skeleton.n_joints)
+            if len(skeleton.aimed_descendants[j]) == 1 and j not in short and observed[:, j].any()
+        ],
+        int,
+    )
 
 
-def angles_bridge_holes(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray,
-                        short_lever_cm: float) -> bool:
+def angles_bridge_holes(
+    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float
+) -> bool:
     """Whether the holes of a take are better bridged by the constant-velocity smoother of
     their angles than filled from the joint positions around them: unless the angles
     carry outliers (the smoother would pass them; :data:`OUTLIER_VARIANCE_RATIO`) or the
@@ -325,8 +340,9 @@ def angles_bridge_holes(skeleton, channels: np.ndarray, observed: np.ndarray, po
     joints = _measured_joints(skeleton, observed, short_lever_cm)
     if not joints.size:
         return False
-    angle, heavy, position = (np.median(x) for x in
-                              angle_and_position_noise(skeleton, channels, observed, positions, joints))
+    angle, heavy, position = (
+        np.median(x) for x in angle_and_position_noise(skeleton, channels, observed, positions, joints)
+    )
     floor = (HOLE_NOISE_CM / skeleton.unit_cm) ** 2
     outliers = heavy > max(OUTLIER_VARIANCE_RATIO * angle, floor)
     return not (outliers or floor < position < angle)
@@ -347,8 +363,15 @@ def angles_are_quiet(skeleton, channels: np.ndarray, observed: np.ndarray, short
     return bool(heavy < (HOLE_NOISE_CM / skeleton.unit_cm) ** 2)
 
 
-def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float,
-                 angle_lever_cm: float, smoothed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def ik_reference(
+    skeleton,
+    channels: np.ndarray,
+    observed: np.ndarray,
+    positions: np.ndarray,
+    short_lever_cm: float,
+    angle_lever_cm: float,
+    smoothed: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What IK (:func:`workbench.core.kinematics.inverse_kinematics`) keeps of an
     observation when an engine has cleaned its joint positions: the reference angles
     (F, J, 3) degrees, every joint's observed angles smoothed by
@@ -365,8 +388,14 @@ def ik_reference(skeleton, channels: np.ndarray, observed: np.ndarray, positions
     short = short_lever_joints(skeleton, short_lever_cm, observed)
     reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed)
     reference = reference[:, angle_slice(skeleton)].reshape(positions.shape)
-    lever = np.array([j for j in short_lever_joints(skeleton, angle_lever_cm, observed)
-                      if j not in short and len(skeleton.aimed_descendants[j]) == 1], int)
+    lever = np.array(
+        [
+            j
+            for j in short_lever_joints(skeleton, angle_lever_cm, observed)
+            if j not in short and len(skeleton.aimed_descendants[j]) == 1
+        ],
+        int,
+    )
     quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever)]
     frames = np.zeros(observed.shape, bool)
     frames[:, quiet] = observed[:, quiet]

@@ -100,8 +100,10 @@ def load_module_arrays(module: torch.nn.Module, arrays: Mapping[str, np.ndarray]
     have = {k for k in arrays if k.startswith(prefix)}
     if wanted != have:
         missing, extra = sorted(wanted - have)[:3], sorted(have - wanted)[:3]
-        raise EngineError(f"weights do not fit this network (missing {missing}, unexpected {extra}); "
-                          "they were saved by another version or with other parameters")
+        raise EngineError(
+            f"weights do not fit this network (missing {missing}, unexpected {extra}); "
+            "they were saved by another version or with other parameters"
+        )
     new = {}
     for k, v in state.items():
         a = np.asarray(arrays[prefix + k])
@@ -115,5 +117,6 @@ def progress(iterable: Iterable, desc: str, total: int | None = None):
     """A tqdm progress bar on stderr (quiet when not a terminal and in CI)."""
     from tqdm import tqdm
 
-    return tqdm(iterable, desc=desc, total=total, dynamic_ncols=True, mininterval=1.0,
-                disable=os.environ.get("CI") == "true")
+    return tqdm(
+        iterable, desc=desc, total=total, dynamic_ncols=True, mininterval=1.0, disable=os.environ.get("CI") == "true"
+    )

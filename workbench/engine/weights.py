@@ -42,8 +42,9 @@ def code_commit() -> str | None:
     root = Path(__file__).resolve().parents[2]
 
     def git(*args: str) -> str:
-        return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=True,
-                              timeout=10).stdout.strip()
+        return subprocess.run(
+            ["git", "-C", str(root), *args], capture_output=True, text=True, check=True, timeout=10
+        ).stdout.strip()
 
     try:
         commit = git("rev-parse", "HEAD")
@@ -88,9 +89,11 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     except (OSError, ValueError) as err:
         raise EngineError(f"{manifest_path}: unreadable weights manifest ({err})") from None
     if manifest.get("format_version") != FORMAT_VERSION:
-        raise EngineError(f"{manifest_path}: weights of manifest format {manifest.get('format_version', 1)}, and "
-                          f"this workbench reads format {FORMAT_VERSION}; retrain the engine "
-                          "(`workbench train SPEC --out FOLDER`)")
+        raise EngineError(
+            f"{manifest_path}: weights of manifest format {manifest.get('format_version', 1)}, and "
+            f"this workbench reads format {FORMAT_VERSION}; retrain the engine "
+            "(`workbench train SPEC --out FOLDER`)"
+        )
     path = folder / manifest.get("file", WEIGHTS_FILE)
     if not path.exists():
         raise EngineError(f"{path}: the weights file named by the manifest is missing")

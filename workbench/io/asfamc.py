@@ -48,17 +48,35 @@ from .errors import MotionFileError
 #: branch points LHipJoint/RHipJoint and LeftShoulder/RightShoulder).
 CMU_ASF_TO_BVH: dict[str, str] = {
     "root": "Hips",
-    "lhipjoint": "LHipJoint", "lfemur": "LeftUpLeg", "ltibia": "LeftLeg",
-    "lfoot": "LeftFoot", "ltoes": "LeftToeBase",
-    "rhipjoint": "RHipJoint", "rfemur": "RightUpLeg", "rtibia": "RightLeg",
-    "rfoot": "RightFoot", "rtoes": "RightToeBase",
-    "lowerback": "LowerBack", "upperback": "Spine", "thorax": "Spine1",
-    "lowerneck": "Neck", "upperneck": "Neck1", "head": "Head",
-    "lclavicle": "LeftShoulder", "lhumerus": "LeftArm", "lradius": "LeftForeArm",
-    "lwrist": "LeftHand", "lhand": "LeftFingerBase", "lfingers": "LeftHandIndex1",
+    "lhipjoint": "LHipJoint",
+    "lfemur": "LeftUpLeg",
+    "ltibia": "LeftLeg",
+    "lfoot": "LeftFoot",
+    "ltoes": "LeftToeBase",
+    "rhipjoint": "RHipJoint",
+    "rfemur": "RightUpLeg",
+    "rtibia": "RightLeg",
+    "rfoot": "RightFoot",
+    "rtoes": "RightToeBase",
+    "lowerback": "LowerBack",
+    "upperback": "Spine",
+    "thorax": "Spine1",
+    "lowerneck": "Neck",
+    "upperneck": "Neck1",
+    "head": "Head",
+    "lclavicle": "LeftShoulder",
+    "lhumerus": "LeftArm",
+    "lradius": "LeftForeArm",
+    "lwrist": "LeftHand",
+    "lhand": "LeftFingerBase",
+    "lfingers": "LeftHandIndex1",
     "lthumb": "LThumb",
-    "rclavicle": "RightShoulder", "rhumerus": "RightArm", "rradius": "RightForeArm",
-    "rwrist": "RightHand", "rhand": "RightFingerBase", "rfingers": "RightHandIndex1",
+    "rclavicle": "RightShoulder",
+    "rhumerus": "RightArm",
+    "rradius": "RightForeArm",
+    "rwrist": "RightHand",
+    "rhand": "RightFingerBase",
+    "rfingers": "RightHandIndex1",
     "rthumb": "RThumb",
 }
 
@@ -200,7 +218,11 @@ def _parse_asf(path: Path) -> AsfModel:
                 tokens = tuple(w.upper() for w in words[1:])
                 bad = [t for t in tokens if t not in _ROOT_TOKENS]
                 if bad or len(set(tokens)) != len(tokens):
-                    fail(f"root 'order' must list distinct tokens of {' '.join(_ROOT_TOKENS)}, found {' '.join(words[1:])}", n)
+                    fail(
+                        f"root 'order' must list distinct tokens of {' '.join(_ROOT_TOKENS)}, "
+                        f"found {' '.join(words[1:])}",
+                        n,
+                    )
                 root_order = tokens
             elif kind == "axis":
                 order = words[1].upper() if len(words) > 1 else ""
@@ -326,8 +348,14 @@ def _parse_asf(path: Path) -> AsfModel:
         frames[j] = _rotation_from(angles * angle_scale, axis_order)
         dofs.append(bone.dofs)
     unit_cm = INCH_CM / length_scale if length_scale is not None else 0.0
-    skeleton = Skeleton(names, (-1,) + tuple(parents), offsets,
-                        (ROOT_CHANNELS,) + (JOINT_CHANNELS,) * len(order), tuple(end_sites), unit_cm)
+    skeleton = Skeleton(
+        names,
+        (-1,) + tuple(parents),
+        offsets,
+        (ROOT_CHANNELS,) + (JOINT_CHANNELS,) * len(order),
+        tuple(end_sites),
+        unit_cm,
+    )
     return AsfModel(str(path), skeleton, frames, tuple(dofs), float(angle_scale))
 
 
@@ -413,8 +441,11 @@ def _parse_amc(lines: list[str], model: AsfModel, path: Path) -> tuple[list[np.n
         missing = [names[j] for j in needed if j not in present]
         if missing:
             raise MotionFileError(
-                path, f"frame {frame_number} (line {frame_line}) has no values for {', '.join(missing[:5])}"
-                + (f" and {len(missing) - 5} more bones" if len(missing) > 5 else ""), end_line)
+                path,
+                f"frame {frame_number} (line {frame_line}) has no values for {', '.join(missing[:5])}"
+                + (f" and {len(missing) - 5} more bones" if len(missing) > 5 else ""),
+                end_line,
+            )
 
     for n, raw in enumerate(lines, start=1):
         text = raw.strip()
@@ -451,7 +482,8 @@ def _parse_amc(lines: list[str], model: AsfModel, path: Path) -> tuple[list[np.n
             raise MotionFileError(path, f"bone line for {name!r} before the first frame number", n)
         if len(words) - 1 != counts[j]:
             raise MotionFileError(
-                path, f"frame {frame_number}: bone {name!r} has {len(words) - 1} values, its dof needs {counts[j]}", n)
+                path, f"frame {frame_number}: bone {name!r} has {len(words) - 1} values, its dof needs {counts[j]}", n
+            )
         if j in present:
             raise MotionFileError(path, f"frame {frame_number}: bone {name!r} appears twice", n)
         present.add(j)

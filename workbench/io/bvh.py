@@ -130,8 +130,14 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
     # The root's position channels are its whole translation: they replace its OFFSET.
     file_offsets = np.array(offsets, float)
     root_offset = np.zeros(3) if any(c in POSITION_CHANNELS for c in channels[0]) else file_offsets[0]
-    return Skeleton(tuple(names), tuple(parents), np.vstack([root_offset, file_offsets[1:]]), tuple(channels),
-                    tuple(end_sites), file_offsets=file_offsets)
+    return Skeleton(
+        tuple(names),
+        tuple(parents),
+        np.vstack([root_offset, file_offsets[1:]]),
+        tuple(channels),
+        tuple(end_sites),
+        file_offsets=file_offsets,
+    )
 
 
 def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -> tuple[float, np.ndarray]:
@@ -143,7 +149,7 @@ def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -
         text = lines[n - 1].strip()
         if not text.lower().startswith(label.lower()):
             raise MotionFileError(path, f"expected '{label} ...', found {text[:40]!r}", n)
-        return text[len(label):].strip()
+        return text[len(label) :].strip()
 
     rest = lines[start - 1].split()[1:]
     if rest:
@@ -164,7 +170,7 @@ def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -
         raise MotionFileError(path, f"'Frame Time:' must be positive, found {ft_text!r}", start + 2)
 
     first = start + 3  # 1-based line number of frame 0
-    body = lines[first - 1:]
+    body = lines[first - 1 :]
     while body and not body[-1].strip():
         body.pop()
     D = sum(len(ch) for ch in skeleton.channels)
@@ -175,15 +181,11 @@ def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -
             first + len(body) - 1 if body else start + 2,
         )
     if len(body) > n_frames:
-        raise MotionFileError(
-            path, f"'Frames:' says {n_frames} but {len(body)} frame lines follow", first + n_frames
-        )
+        raise MotionFileError(path, f"'Frames:' says {n_frames} but {len(body)} frame lines follow", first + n_frames)
     rows = [line.split() for line in body]
     for n, row in enumerate(rows):
         if len(row) != D:
-            raise MotionFileError(
-                path, f"frame {n} has {len(row)} values, the hierarchy has {D} channels", first + n
-            )
+            raise MotionFileError(path, f"frame {n} has {len(row)} values, the hierarchy has {D} channels", first + n)
     try:
         values = np.array(rows, dtype=float)
     except ValueError:

@@ -51,5 +51,5 @@ def read_mask(path: str | Path, skeleton: Skeleton, n_frames: int) -> np.ndarray
         for span in spans:
             if not (isinstance(span, list) and len(span) == 2 and 0 <= span[0] < span[1] <= n_frames):
                 raise MotionFileError(path, f"joint {name!r}: bad span {span!r} (want [start, stop) within the take)")
-            observed[span[0]:span[1], j] = False
+            observed[span[0] : span[1], j] = False
     return observed

@@ -5,5 +5,12 @@ from .bones import plot_bone_lengths
 from .heatmap import plot_data_weights, plot_filter_widths
 from .timeline import TimeCursor, gap_spans, plot_errors, plot_note
 
-__all__ = ["plot_errors", "plot_filter_widths", "plot_data_weights", "plot_bone_lengths", "plot_note", "gap_spans",
-           "TimeCursor"]
+__all__ = [
+    "plot_errors",
+    "plot_filter_widths",
+    "plot_data_weights",
+    "plot_bone_lengths",
+    "plot_note",
+    "gap_spans",
+    "TimeCursor",
+]

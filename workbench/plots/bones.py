@@ -13,8 +13,9 @@ from .style import TRUTH
 from .timeline import outside_legend
 
 
-def plot_bone_lengths(ax, sources: list[tuple[str, np.ndarray, str]], skeleton, bones: list[int],
-                      truth: np.ndarray | None = None) -> None:
+def plot_bone_lengths(
+    ax, sources: list[tuple[str, np.ndarray, str]], skeleton, bones: list[int], truth: np.ndarray | None = None
+) -> None:
     """Box plots of bone lengths in cm. sources: (label, positions (F, J, 3) in file
     units, colour); bones: child joint index of each bone shown; truth: (F, J, 3)."""
     column = {j: k for k, j in enumerate(j for j, p in enumerate(skeleton.parents) if p >= 0)}
@@ -24,15 +25,21 @@ def plot_bone_lengths(ax, sources: list[tuple[str, np.ndarray, str]], skeleton, 
     for i, (label, positions, colour) in enumerate(sources):
         lengths = bone_lengths(positions, skeleton.parents)[:, cols] * skeleton.unit_cm
         x = np.arange(len(bones)) + (i - (n - 1) / 2) * width
-        ax.boxplot(lengths, positions=x, widths=width * 0.85, patch_artist=True, showfliers=False,
-                   boxprops=dict(facecolor=colour, alpha=0.55, edgecolor=colour),
-                   medianprops=dict(color=colour, lw=2), whiskerprops=dict(color=colour),
-                   capprops=dict(color=colour))
+        ax.boxplot(
+            lengths,
+            positions=x,
+            widths=width * 0.85,
+            patch_artist=True,
+            showfliers=False,
+            boxprops=dict(facecolor=colour, alpha=0.55, edgecolor=colour),
+            medianprops=dict(color=colour, lw=2),
+            whiskerprops=dict(color=colour),
+            capprops=dict(color=colour),
+        )
         ax.plot([], [], color=colour, lw=6, alpha=0.55, label=label)
     if truth is not None:
         median = np.median(bone_lengths(truth, skeleton.parents)[:, cols] * skeleton.unit_cm, axis=0)
-        ax.scatter(np.arange(len(bones)), median, s=40, color=TRUTH, edgecolor="white", zorder=4,
-                   label="truth")
+        ax.scatter(np.arange(len(bones)), median, s=40, color=TRUTH, edgecolor="white", zorder=4, label="truth")
     labels = [f"{skeleton.names[skeleton.parents[j]]} →\n{skeleton.names[j]}" for j in bones]  # narrow: no overlap
     ax.set_xticks(np.arange(len(bones)), labels, fontsize="x-small")
     ax.set_xlim(-0.6, len(bones) - 0.4)

@@ -33,8 +33,11 @@ def channel_groups(names, n_channels: int, translated=()) -> list[tuple[str, int
     three coordinates when it has 3J rows, else one group."""
     J, T = len(names), len(translated)
     if n_channels == 3 + 3 * J + 3 * T:
-        return ([("root position", 0, 3, None)] + [(n, 3 + 3 * j, 6 + 3 * j, j) for j, n in enumerate(names)]
-                + [(f"{names[j]} translation", 3 + 3 * (J + k), 6 + 3 * (J + k), j) for k, j in enumerate(translated)])
+        return (
+            [("root position", 0, 3, None)]
+            + [(n, 3 + 3 * j, 6 + 3 * j, j) for j, n in enumerate(names)]
+            + [(f"{names[j]} translation", 3 + 3 * (J + k), 6 + 3 * (J + k), j) for k, j in enumerate(translated)]
+        )
     if n_channels == 3 * J and J:
         return [(n, 3 * j, 3 + 3 * j, j) for j, n in enumerate(names)]
     return [("channels", 0, n_channels, None)]
@@ -51,8 +54,19 @@ def label_rows(n: int, first: set[int], room: float) -> list[int]:
     return sorted(keep)
 
 
-def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: str, bar_ticks, names=(),
-                     title: str = "", highlight=(), translated=()) -> None:
+def plot_channel_map(
+    ax,
+    values: np.ndarray,
+    fps: float,
+    norm,
+    cmap,
+    bar_label: str,
+    bar_ticks,
+    names=(),
+    title: str = "",
+    highlight=(),
+    translated=(),
+) -> None:
     """Heatmap of ``values`` (F, C) over time (s) with a colour bar (``norm``, ``cmap``,
     ticks at ``bar_ticks``, plain numbers); rows labelled by joint (:func:`channel_groups`
     of the joints ``names`` and the ``translated`` ones), those of the joints in
@@ -68,8 +82,7 @@ def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: 
     chosen = set(highlight)
     bold = {i for i, g in enumerate(groups) if g[3] in chosen}
     keep = label_rows(len(groups), bold, ax.get_window_extent().height / LABEL_PX)
-    ax.set_yticks([(groups[i][1] + groups[i][2]) / 2 for i in keep], [groups[i][0] for i in keep],
-                  fontsize="x-small")
+    ax.set_yticks([(groups[i][1] + groups[i][2]) / 2 for i in keep], [groups[i][0] for i in keep], fontsize="x-small")
     for tick, i in zip(ax.get_yticklabels(), keep, strict=True):
         tick.set_fontweight("bold" if i in bold else "normal")
     ax.set_xlabel("time (s)")
@@ -77,8 +90,16 @@ def plot_channel_map(ax, values: np.ndarray, fps: float, norm, cmap, bar_label: 
         ax.set_title(title, loc="left", fontsize="medium")
 
 
-def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title: str = "",
-                       vmax: float | None = None, highlight=(), translated=()) -> None:
+def plot_filter_widths(
+    ax,
+    sigma_frames: np.ndarray,
+    fps: float,
+    names=(),
+    title: str = "",
+    vmax: float | None = None,
+    highlight=(),
+    translated=(),
+) -> None:
     """Heatmap of ``sigma_frames`` (F, C) with a logarithmic colour bar from
     :data:`NARROWEST_FRAMES` to ``vmax`` (default: the widest)."""
     from matplotlib.colors import LogNorm
@@ -89,13 +110,25 @@ def plot_filter_widths(ax, sigma_frames: np.ndarray, fps: float, names=(), title
     plot_channel_map(ax, sigma_frames, fps, norm, "viridis", "σ (frames)", ticks, names, title, highlight, translated)
 
 
-def plot_data_weights(ax, weights: np.ndarray, fps: float, names=(), title: str = "", highlight=(),
-                      translated=()) -> None:
+def plot_data_weights(
+    ax, weights: np.ndarray, fps: float, names=(), title: str = "", highlight=(), translated=()
+) -> None:
     """Heatmap of a robust estimator's data ``weights`` (F, C), 0 (dark red: an outlier)
     to 1 (white: taken at face value); NaN (missing) in :data:`MISSING_COLOUR`."""
     import matplotlib
     from matplotlib.colors import Normalize
 
     cmap = matplotlib.colormaps["Reds_r"].with_extremes(bad=MISSING_COLOUR)
-    plot_channel_map(ax, np.ma.masked_invalid(weights), fps, Normalize(0.0, 1.0), cmap, "data weight",
-                     [0, 0.5, 1], names, title, highlight, translated)
+    plot_channel_map(
+        ax,
+        np.ma.masked_invalid(weights),
+        fps,
+        Normalize(0.0, 1.0),
+        cmap,
+        "data weight",
+        [0, 0.5, 1],
+        names,
+        title,
+        highlight,
+        translated,
+    )

@@ -40,8 +40,9 @@ def shade_gaps(ax, missing: np.ndarray, fps: float, label: str = "gaps") -> None
         ax.axvspan(a / fps, b / fps, color=GAP, alpha=0.28, lw=0, label=label if k == 0 else None)
 
 
-def plot_errors(ax, series: list[Series], fps: float, missing: np.ndarray | None = None, title: str = "",
-                ylabel: str = ERROR_LABEL) -> None:
+def plot_errors(
+    ax, series: list[Series], fps: float, missing: np.ndarray | None = None, title: str = "", ylabel: str = ERROR_LABEL
+) -> None:
     """Joint error over time (cm), one line per series, gap spans shaded where
     ``missing`` (F,) is True."""
     n = len(series[0].values)
@@ -81,15 +82,21 @@ def outside_legend(ax) -> None:
     """The legend to the right of the axes (a fixed place: "best" made images flaky),
     long labels wrapped (:func:`wrap_label`)."""
     handles, labels = ax.get_legend_handles_labels()
-    ax.legend(handles, [wrap_label(label) for label in labels], loc="upper left", bbox_to_anchor=(1.01, 1.0),
-              fontsize="small", frameon=False, borderaxespad=0)
+    ax.legend(
+        handles,
+        [wrap_label(label) for label in labels],
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        fontsize="small",
+        frameon=False,
+        borderaxespad=0,
+    )
 
 
 def plot_note(ax, text: str) -> None:
     """An empty axes that says why there is nothing to plot."""
     ax.set_axis_off()
-    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color=TEXT, fontsize="medium",
-            wrap=True)
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, color=TEXT, fontsize="medium", wrap=True)
 
 
 class TimeCursor:

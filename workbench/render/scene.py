@@ -66,8 +66,9 @@ def new_plotter(n_panes: int, size: tuple[int, int]):
     """An off-screen plotter with ``n_panes`` side by side, ``size`` (width, height) px."""
     import pyvista as pv
 
-    return pv.Plotter(off_screen=True, shape=(1, n_panes), window_size=list(size), theme=plain_theme(),
-                      **PLOTTER_OPTIONS)
+    return pv.Plotter(
+        off_screen=True, shape=(1, n_panes), window_size=list(size), theme=plain_theme(), **PLOTTER_OPTIONS
+    )
 
 
 def plain_theme():
@@ -93,8 +94,9 @@ class _PaneActors:
         self.bones = self.joints = self.ghost = None
         if pane.ghost is not None:
             self.ghost = pv.PolyData(pane.ghost[0], lines=lines)
-            plotter.add_mesh(self.ghost, color=TRUTH, opacity=GHOST_OPACITY, line_width=GHOST_PX,
-                             lighting=False, pickable=False)
+            plotter.add_mesh(
+                self.ghost, color=TRUTH, opacity=GHOST_OPACITY, line_width=GHOST_PX, lighting=False, pickable=False
+            )
         if pane.points is None:
             return
         self.bones = pv.PolyData(pane.points[0], lines=lines)
@@ -102,9 +104,17 @@ class _PaneActors:
         self.joints = pv.PolyData(pane.points[0, :n_joints])
         self.joints.point_data["error_cm"] = self._scalars(0)
         plotter.add_mesh(
-            self.joints, scalars="error_cm", clim=clim, nan_color=MISSING, point_size=JOINT_PX,
-            render_points_as_spheres=True, lighting=False, pickable=False, show_scalar_bar=False,
-            cmap=cmap if pane.errors_cm is not None else ListedColormap([pane.colour]))
+            self.joints,
+            scalars="error_cm",
+            clim=clim,
+            nan_color=MISSING,
+            point_size=JOINT_PX,
+            render_points_as_spheres=True,
+            lighting=False,
+            pickable=False,
+            show_scalar_bar=False,
+            cmap=cmap if pane.errors_cm is not None else ListedColormap([pane.colour]),
+        )
 
     def _scalars(self, f: int) -> np.ndarray:
         p = self.pane
@@ -129,8 +139,17 @@ class SkeletonScene:
     (a rebuild while the user has turned the view); ``selected``: joints ringed in the
     plots' joint colours."""
 
-    def __init__(self, plotter, panes: list[Pane], skeleton, root: np.ndarray, clim_cm: tuple[float, float],
-                 follow: bool = True, keep_camera: bool = False, selected: tuple[int, ...] = ()) -> None:
+    def __init__(
+        self,
+        plotter,
+        panes: list[Pane],
+        skeleton,
+        root: np.ndarray,
+        clim_cm: tuple[float, float],
+        follow: bool = True,
+        keep_camera: bool = False,
+        selected: tuple[int, ...] = (),
+    ) -> None:
         self.plotter, self.panes, self.root, self.follow = plotter, panes, np.asarray(root, float), follow
         self.J = skeleton.n_joints
         self.unit_cm = skeleton.unit_cm
@@ -185,10 +204,17 @@ class SkeletonScene:
             self.plotter.subplot(0, i)
             poly = pv.PolyData(pane.points[self.frame, list(self.selected)])
             poly.point_data["k"] = np.arange(len(self.selected), dtype=float)
-            actor = self.plotter.add_mesh(poly, scalars="k", cmap=ListedColormap(colours),
-                                          clim=(-0.5, len(colours) - 0.5), point_size=HALO_PX,
-                                          render_points_as_spheres=True, lighting=False, pickable=False,
-                                          show_scalar_bar=False)
+            actor = self.plotter.add_mesh(
+                poly,
+                scalars="k",
+                cmap=ListedColormap(colours),
+                clim=(-0.5, len(colours) - 0.5),
+                point_size=HALO_PX,
+                render_points_as_spheres=True,
+                lighting=False,
+                pickable=False,
+                show_scalar_bar=False,
+            )
             self.halos.append((i, poly, actor))
         self._place_halos()
 
@@ -216,11 +242,23 @@ class SkeletonScene:
         lo, hi = np.floor(lo / cell) * cell, np.ceil(hi / cell) * cell
         n = np.maximum(np.round((hi - lo) / cell).astype(int), 1)
         centre = ((lo[0] + hi[0]) / 2, self.floor_y, (lo[1] + hi[1]) / 2)
-        grid = pv.Plane(center=centre, direction=(0, 1, 0), i_size=hi[1] - lo[1], j_size=hi[0] - lo[0],
-                        i_resolution=int(n[1]), j_resolution=int(n[0]))
+        grid = pv.Plane(
+            center=centre,
+            direction=(0, 1, 0),
+            i_size=hi[1] - lo[1],
+            j_size=hi[0] - lo[0],
+            i_resolution=int(n[1]),
+            j_resolution=int(n[0]),
+        )
         self.plotter.add_mesh(grid, color=FLOOR, lighting=False, pickable=False)
-        self.plotter.add_mesh(grid.translate((0, 0.002 * self.height, 0)), style="wireframe", color=GRID,
-                              line_width=1, lighting=False, pickable=False)
+        self.plotter.add_mesh(
+            grid.translate((0, 0.002 * self.height, 0)),
+            style="wireframe",
+            color=GRID,
+            line_width=1,
+            lighting=False,
+            pickable=False,
+        )
 
     def aim_camera(self) -> None:
         """A three-quarter side view of the walking direction, the whole body in view;

@@ -42,14 +42,14 @@ def _noisy(motion: Motion, seed: int = 7, gaps: bool = False) -> Observation:
     if gaps:
         F = motion.n_frames
         for j in (2, motion.skeleton.n_joints // 2, motion.skeleton.n_joints - 1):
-            observed[F // 3:F // 3 + 20, j] = False
+            observed[F // 3 : F // 3 + 20, j] = False
         observed[rng.random(observed.shape) < 0.02] = False
         observed[:, 0] = True
     return Observation(motion.with_channels(X), observed)
 
 
 def _same_frame(a: Motion, b: Motion) -> bool:
-    return (a.skeleton.allclose(b.skeleton) and a.fps == b.fps and a.n_frames == b.n_frames)
+    return a.skeleton.allclose(b.skeleton) and a.fps == b.fps and a.n_frames == b.n_frames
 
 
 def check_info(engine, name: str, **_) -> None:
@@ -88,8 +88,9 @@ def check_keeps_observed(engine, name: str, motion: Motion, **_) -> None:
     obs = _noisy(motion, gaps=True)
     out = engine.clean(obs).motion.channels
     mask, lengths, angles = obs.channel_observed, length_columns(motion.skeleton), angle_slice(motion.skeleton)
-    assert np.allclose((out - obs.motion.channels)[:, lengths][mask[:, lengths]], 0, atol=1e-6), \
+    assert np.allclose((out - obs.motion.channels)[:, lengths][mask[:, lengths]], 0, atol=1e-6), (
         f"{name}: says keeps_observed but moved observed root positions or translations"
+    )
     ang = ((out - obs.motion.channels)[:, angles] + 180.0) % 360.0 - 180.0
     assert np.allclose(ang[mask[:, angles]], 0, atol=1e-6), f"{name}: says keeps_observed but changed observed angles"
 
@@ -98,12 +99,14 @@ def check_result_is_not_a_view(engine, name: str, motion: Motion, **_) -> None:
     obs = _noisy(motion, gaps=True)
     out = engine.clean(obs).motion
     for field in ("root_positions", "angles_deg", "translations"):
-        assert not np.shares_memory(getattr(out, field), getattr(obs.motion, field)), \
+        assert not np.shares_memory(getattr(out, field), getattr(obs.motion, field)), (
             f"{name}: the cleaned {field} share memory with the input's"
+        )
 
 
-def check_foreign_skeleton(engine, name: str, motion: Motion,
-                           foreign: Motion | Sequence[Motion] | None = None, **_) -> None:
+def check_foreign_skeleton(
+    engine, name: str, motion: Motion, foreign: Motion | Sequence[Motion] | None = None, **_
+) -> None:
     others = [foreign] if isinstance(foreign, Motion) else list(foreign or ())
     if not others:
         raise CheckSkipped("no take of another skeleton layout was given")
@@ -126,8 +129,9 @@ def check_foreign_skeleton(engine, name: str, motion: Motion,
 
 def check_parameters_are_frozen(engine, name: str, **_) -> None:
     params = engine.params
-    assert dataclasses.is_dataclass(params) and type(params).__dataclass_params__.frozen, \
+    assert dataclasses.is_dataclass(params) and type(params).__dataclass_params__.frozen, (
         f"{name}: Params must be a frozen dataclass"
+    )
     for f in dataclasses.fields(params):
         try:
             setattr(params, f.name, getattr(params, f.name))
@@ -141,8 +145,7 @@ def check_spec_round_trip(engine, name: str, **_) -> None:
     assert again.spec == engine.spec, f"{name}: spec {engine.spec!r} does not round-trip ({again.spec!r})"
 
 
-def check_unfitted(engine, name: str, motion: Motion, make_untrained: Callable[[], Engine] | None = None,
-                   **_) -> None:
+def check_unfitted(engine, name: str, motion: Motion, make_untrained: Callable[[], Engine] | None = None, **_) -> None:
     if not engine.info.trainable:
         raise CheckSkipped(f"{name} is not trainable: it has nothing to fit")
     fresh = make_untrained() if make_untrained else registry.create(engine.spec, pretrained=False)
@@ -153,8 +156,9 @@ def check_unfitted(engine, name: str, motion: Motion, make_untrained: Callable[[
     raise AssertionError(f"{name}: an unfitted trainable engine must raise NotFittedError")
 
 
-def check_fit_returns_self_and_repeats(engine, name: str, make_untrained: Callable[[], Engine] | None = None,
-                                       training: Sequence[Motion] | None = None, **_) -> None:
+def check_fit_returns_self_and_repeats(
+    engine, name: str, make_untrained: Callable[[], Engine] | None = None, training: Sequence[Motion] | None = None, **_
+) -> None:
     """``fit`` returns the engine itself, and two seeded fits give the same state."""
     if not training:
         raise CheckSkipped("no training takes were given")
@@ -185,9 +189,14 @@ CHECKS: dict[str, Callable] = {
 }
 
 
-def check_engine(make_engine: Callable[[], Engine], motion: Motion, foreign: Motion | Sequence[Motion] | None = None,
-                 checks: list[str] | None = None, make_untrained: Callable[[], Engine] | None = None,
-                 training: Sequence[Motion] | None = None) -> dict[str, str]:
+def check_engine(
+    make_engine: Callable[[], Engine],
+    motion: Motion,
+    foreign: Motion | Sequence[Motion] | None = None,
+    checks: list[str] | None = None,
+    make_untrained: Callable[[], Engine] | None = None,
+    training: Sequence[Motion] | None = None,
+) -> dict[str, str]:
     """Run the conformance checks (all, or the named ones) on one engine; returns the
     checks that did not apply, with the reason. Raises AssertionError on the first
     broken rule."""
@@ -196,8 +205,9 @@ def check_engine(make_engine: Callable[[], Engine], motion: Motion, foreign: Mot
     skipped = {}
     for key in checks or list(CHECKS):
         try:
-            CHECKS[key](engine, name=name, motion=motion, foreign=foreign, make_untrained=make_untrained,
-                        training=training)
+            CHECKS[key](
+                engine, name=name, motion=motion, foreign=foreign, make_untrained=make_untrained, training=training
+            )
         except CheckSkipped as why:
             skipped[key] = str(why)
     return skipped
@@ -215,8 +225,7 @@ def parametrize_with_engine_checks(names: Sequence[str]):
     arguments ``engine`` and ``check``; run each with :func:`run_check`."""
     import pytest
 
-    return pytest.mark.parametrize("engine, check", [pytest.param(n, c, id=f"{n}-{c}") for n in names
-                                                     for c in CHECKS])
+    return pytest.mark.parametrize("engine, check", [pytest.param(n, c, id=f"{n}-{c}") for n in names for c in CHECKS])
 
 
 def run_check(check: str, make_engine: Callable[[], Engine], motion: Motion, **context) -> None:
@@ -239,9 +248,14 @@ def conformance_clips(root=None, frames: int = 150, dataset: str | None = None) 
 
     clips = sorted(catalogue(root), key=lambda c: c.split != "train")
     if dataset is None:  # the first dataset whose first clip has no translated joints
-        dataset = next((name for name in dict.fromkeys(c.dataset for c in clips)
-                        if not next(c for c in clips if c.dataset == name).load().skeleton.translated),
-                       clips[0].dataset)
+        dataset = next(
+            (
+                name
+                for name in dict.fromkeys(c.dataset for c in clips)
+                if not next(c for c in clips if c.dataset == name).load().skeleton.translated
+            ),
+            clips[0].dataset,
+        )
     clips.sort(key=lambda c: c.dataset != dataset)  # stable: the training clips first within each
     primary = clips[0].load().slice(0, frames)
     layouts, foreign = {primary.skeleton.signature()}, []
