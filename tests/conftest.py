@@ -16,6 +16,18 @@ import pytest
 from workbench.data import catalogue, find_data_root
 from workbench.io import read_bvh
 
+# the plugin package's own tests run in tests/test_plugin.py, with the plugin installed
+collect_ignore = ["plugin_engine"]
+
+
+def pytest_collection_modifyitems(config, items):
+    """The app's tests are ``gui``; the conformance suite's training checks ``slow``."""
+    for item in items:
+        if "app" in item.path.parent.parts[-1:]:
+            item.add_marker(pytest.mark.gui)
+        if item.nodeid.endswith("-fit]"):
+            item.add_marker(pytest.mark.slow)
+
 
 @pytest.fixture(scope="session")
 def data_root():

@@ -216,6 +216,7 @@ def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_ref
     assert clips and all(c.startswith("bandai/") for c in clips) and out.startswith("| engine |")
 
 
+@pytest.mark.slow
 def test_train_refuses_translated_joints_and_defaults_to_the_committed_dataset(capsys):
     assert main(["train", "kalman-learned", "--dataset", "bandai", "--out", "unused"]) == 2
     err = capsys.readouterr().err
@@ -261,6 +262,7 @@ def test_a_reader_that_stops_early_gets_no_traceback():
     assert proc.wait() == 0 and "Traceback" not in err, err
 
 
+@pytest.mark.slow
 def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_root, capsys):
     """The route the foreign-skeleton error names: train on takes of that skeleton into a
     folder, clean with ``ENGINE:weights=FOLDER``; the committed weights stay untouched."""
@@ -335,3 +337,16 @@ def test_bench_reports_the_memory_an_engines_cleans_add(walk):
     summary = run_benchmark([Hungry(), "identity"], "angular:0.5", clip).summary
     assert summary["test-hungry"]["peak_mb"] > 150
     assert summary["identity"]["peak_mb"] < 50  # what the hungry engine freed is not counted again
+
+
+def test_the_readme_python_api_runs_as_it_stands(tmp_path, monkeypatch, capsys):
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = readme.split("## Python API", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README.md", "exec"), {})
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split(" ")[0] for line in out] == ["lerp>gaussian", "kalman"] and "mpjpe_cm" in out[1]
+    assert read_bvh(tmp_path / "cleaned.bvh").n_frames == 421

@@ -345,6 +345,7 @@ def cmd_train(args) -> int:
     train = select(clips, "train") or select(clips, None)
     if not train:
         raise UserError(f"no training clips under {root}" + (f" in dataset {dataset!r}" if dataset else ""))
+    engine.training_motions([train[0].load()])  # a skeleton it cannot train on, before loading every take
     loaded = [(c, c.load()) for c in train]
     layout = loaded[0][1].skeleton.signature()
     used = [(c, m) for c, m in loaded if m.skeleton.signature() == layout]

@@ -266,6 +266,7 @@ def test_clean_before_fit_raises_not_fitted(walk):
         registry.create("mssa:window_frames=10").clean(Observation(walk))  # no bases for M=10
 
 
+@pytest.mark.slow
 def test_save_load_round_trip_gives_identical_output(fitted, walk, tmp_path):
     fitted.save(tmp_path, {"training": {"clips": list(FIT_CLIPS), "split": "train"}})
     loaded = MSSA().load(tmp_path)

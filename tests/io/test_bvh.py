@@ -21,6 +21,7 @@ def shared_takes(data_root):
     return [(f, read_bvh(f)) for f in all_bvh(data_root)]
 
 
+@pytest.mark.slow
 def test_reads_every_shared_clip(shared_takes):
     assert len(shared_takes) >= 600
     layouts = set()
@@ -33,6 +34,7 @@ def test_reads_every_shared_clip(shared_takes):
     assert layouts == {(120.0, 31, "ZYX", (), (0,)), (120.0, 43, "ZXY", (), (0,)), (30.0, 22, "ZXY", ("Hips",), (0, 1))}
 
 
+@pytest.mark.slow
 def test_every_shared_take_writes_back_exactly(shared_takes, tmp_path):
     """Read, write, read: the same numbers, offsets, OFFSET lines and layout, bit for bit."""
     path = tmp_path / "again.bvh"
@@ -69,6 +71,7 @@ def _bvhio_positions(text: str, tmp_path, n_frames: int) -> tuple[list[str], np.
     return [j.Name for j in joints], np.array(out)
 
 
+@pytest.mark.slow
 def test_forward_kinematics_matches_an_independent_reader(shared_takes, tmp_path):
     """FK of every shared take, on its first, middle and last frames, agrees with bvhio's
     (which, as Blender, lets a joint's position channels replace its OFFSET) to float32
