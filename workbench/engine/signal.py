@@ -41,12 +41,21 @@ __all__ = [
 
 @dataclass(frozen=True)
 class Prepared:
-    """An observation's channel matrix, ready for filtering.
+    """An observation's channel matrix, ready for filtering (made by :func:`prepare`).
 
-    raw: (F, D) channels as observed (NaN where missing); mask: (F, D) observed;
-    bridged: (F, D) angles unwrapped along time, gaps interpolated (treat as read-only:
-    it may be ``raw`` itself when there is nothing to unwrap or fill); wrapped: the
-    columns whose unwrapping changed something.
+    Attributes
+    ----------
+    raw : ndarray, shape (F, D)
+        The channels as observed, NaN where missing.
+    mask : ndarray of bool, shape (F, D)
+        True where observed.
+    bridged : ndarray, shape (F, D)
+        Angles unwrapped along time, gaps interpolated. Treat as read-only: it may be
+        ``raw`` itself when there is nothing to unwrap or fill.
+    wrapped : ndarray of int
+        The columns whose unwrapping changed something.
+    complete : bool
+        Nothing is missing.
     """
 
     raw: np.ndarray
@@ -56,9 +65,20 @@ class Prepared:
     complete: bool
 
     def output(self, Y: np.ndarray) -> np.ndarray:
-        """A filtered (F, D) matrix of unwrapped angles put back on the input's branch:
-        angle columns that were unwrapped are shifted by whole turns to follow the raw
-        angles (:func:`workbench.core.channels.rewrap_deg`); equal to ``Y`` modulo 360."""
+        """Put a filtered matrix of unwrapped angles back on the input's angle branch.
+
+        Parameters
+        ----------
+        Y : ndarray, shape (F, D)
+            A filter's output of :attr:`bridged`: degrees and file units.
+
+        Returns
+        -------
+        ndarray, shape (F, D)
+            ``Y`` with the unwrapped angle columns shifted by whole turns to follow the
+            raw angles (:func:`workbench.core.channels.rewrap_deg`): equal to ``Y``
+            modulo 360.
+        """
         if not self.wrapped.size:
             return Y
         Y = np.array(Y, dtype=float)
@@ -68,9 +88,24 @@ class Prepared:
 
 
 def prepare(observation: Observation, kind: str = "linear") -> Prepared:
-    """Unwrap and bridge an observation (``kind`` as in
-    :func:`workbench.core.channels.interpolate_gaps`), touching only the columns that
-    need it (most takes have no angle wrapping and no gaps)."""
+    """Unwrap and bridge an observation's channel matrix for a filter.
+
+    Only the columns that need it are touched (most takes have no angle wrapping and
+    no gaps). Angles are unwrapped robustly to outliers
+    (:func:`workbench.core.channels.unwrap_deg`).
+
+    Parameters
+    ----------
+    observation : Observation
+        The take as an engine sees it (NaN where missing).
+    kind : {"linear", "cubic"}
+        How gaps are bridged (:func:`workbench.core.channels.interpolate_gaps`).
+
+    Returns
+    -------
+    Prepared
+        The raw matrix, its mask and the bridged matrix; ``output`` puts a result back.
+    """
     mask = observation.channel_observed
     raw = observation.motion.channels
     complete = bool(observation.observed.all())
@@ -93,16 +128,38 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
 
 
 def bridge_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
-    """(F, D) channel matrix of the observation with gaps interpolated (``kind`` as in
-    :func:`workbench.core.channels.interpolate_gaps`), angles unwrapped."""
+    """The observation's channel matrix, angles unwrapped and gaps interpolated.
+
+    Parameters
+    ----------
+    observation : Observation
+    kind : {"linear", "cubic"}
+        As in :func:`prepare`.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        A new array (degrees and file units), finite everywhere.
+    """
     p = prepare(observation, kind)
     return p.bridged.copy() if p.bridged is p.raw else p.bridged
 
 
 def rewrap_angles(Y: np.ndarray, observation: Observation) -> np.ndarray:
-    """Channel matrix ``Y`` (unwrapped angles, e.g. a filtered :func:`bridge_gaps`) with
-    its angle channels shifted by whole turns onto the observation's own branch, so the
-    output reads like the input (equal to ``Y`` modulo 360)."""
+    """Shift the angle channels of ``Y`` by whole turns onto the observation's branch.
+
+    Parameters
+    ----------
+    Y : ndarray, shape (F, D)
+        A channel matrix of unwrapped angles, e.g. a filtered :func:`bridge_gaps`.
+    observation : Observation
+        The input whose angle branch the output follows.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        A new array equal to ``Y`` modulo 360 that reads like the input.
+    """
     mask, angles = observation.channel_observed, angle_slice(observation.skeleton)
     out = np.array(Y, dtype=float)
     out[:, angles] = rewrap_deg(out[:, angles], observation.motion.channels[:, angles], mask[:, angles])
@@ -110,9 +167,20 @@ def rewrap_angles(Y: np.ndarray, observation: Observation) -> np.ndarray:
 
 
 def fill_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
-    """(F, D) channel matrix with only the gaps filled: observed samples exactly as given,
-    missing ones interpolated over time (``kind``: "linear" or "cubic") on unwrapped
-    angles and placed on the branch of the observed sample before them."""
+    """Fill only the gaps of an observation's channel matrix.
+
+    Parameters
+    ----------
+    observation : Observation
+    kind : {"linear", "cubic"}
+        How gaps are bridged, on unwrapped angles.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        Observed samples exactly as given; missing ones interpolated over time and put
+        on the branch of the observed sample before them.
+    """
     p = prepare(observation, kind)
     if p.complete:
         return p.raw
@@ -124,8 +192,18 @@ TRUNCATE = 4.0
 
 
 def gaussian_kernel(sigma_frames: float) -> np.ndarray:
-    """Sampled zero-mean Gaussian of std ``sigma_frames``, radius ``TRUNCATE`` sigma
-    (rounded), normalised to sum 1."""
+    """A sampled zero-mean Gaussian kernel, normalised to sum 1.
+
+    Parameters
+    ----------
+    sigma_frames : float
+        Its standard deviation, in frames (> 0).
+
+    Returns
+    -------
+    ndarray, shape (2 r + 1,)
+        The kernel, of radius ``r = round(TRUNCATE * sigma_frames)`` frames.
+    """
     radius = int(TRUNCATE * sigma_frames + 0.5)
     i = np.arange(-radius, radius + 1, dtype=float)
     k = np.exp(-0.5 * (i / sigma_frames) ** 2)
@@ -133,8 +211,19 @@ def gaussian_kernel(sigma_frames: float) -> np.ndarray:
 
 
 def convolve_time(A: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """Convolve every column of ``A`` (F, D) with a centred odd-length ``kernel`` along
-    time, zero outside the clip (FFT, exact up to rounding)."""
+    """Convolve every column with a centred kernel along time, zero outside the clip.
+
+    Parameters
+    ----------
+    A : ndarray, shape (F, D)
+    kernel : ndarray, shape (K,)
+        Odd length, centred.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        By FFT, exact up to rounding.
+    """
     F = A.shape[0]
     radius = kernel.size // 2
     if radius == 0:
@@ -147,11 +236,26 @@ def convolve_time(A: np.ndarray, kernel: np.ndarray) -> np.ndarray:
 def normalized_gaussian(
     X: np.ndarray, certainty: np.ndarray, sigma_frames: float, columns: np.ndarray | None = None
 ) -> np.ndarray:
-    """Normalised convolution of the columns of ``X`` (F, D) with a Gaussian of std
-    ``sigma_frames``: ``G*(c X) / G*c``, zero padded outside the clip. ``certainty`` is
-    (F, K): column ``columns[d]`` of it (default: d) is the certainty of column d of X;
-    K = 1 with ``columns`` None means one certainty for all columns. It must be
-    positive wherever the result is wanted."""
+    """Gaussian smoothing along time that lets missing samples and the ends not count.
+
+    The normalised convolution of Knutsson and Westin (1993), ``G*(c X) / G*c``, zero
+    padded outside the clip.
+
+    Parameters
+    ----------
+    X : ndarray, shape (F, D)
+    certainty : ndarray, shape (F, K) or (F,)
+        The weight of each sample, positive wherever the result is wanted (0: ignored).
+    sigma_frames : float
+        The Gaussian's standard deviation, in frames.
+    columns : ndarray of int, shape (D,), optional
+        Column ``columns[d]`` of ``certainty`` is the certainty of column ``d`` of ``X``
+        (default: ``d``; with K = 1, one certainty for all columns).
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+    """
     X = np.asarray(X, float)
     c = np.asarray(certainty, float)
     if c.ndim == 1:
