@@ -1,163 +1,42 @@
-"""The engine machinery shared by ``cae``, ``cae-vanilla`` and ``holden``: the motion image
-(:mod:`.representation`), training (:mod:`.training`), inference and IK back to angles.
+"""Cleaning shared by ``cae``, ``cae-vanilla`` and ``holden`` (Kaufmann et al. 2020: §3.1 the motion
+image, :mod:`.representation`; §3.3 training, :mod:`.training`; §4.2 tertiary motion blending): the
+network completes the image of a take and IK turns it back into angles (the paper stops at positions).
 
-Cleaning a take (Observation -> Motion):
+1. FK of the observation (angles in degrees, gaps bridged, unwrapped) gives the image (F, H) of its
+   positions (file units), masked where a position is unknown (the root or an ancestor's angles
+   missing). Counted as observed: joints that never vary in the training data (their bridge is
+   exact); holes of at most ``short_hole_frames`` in a joint's angles (ours: a bridge beats the
+   network there, and drop-outs would hide every joint below them); holes of at most
+   ``partial_hole_frames`` where the root is observed, if :func:`workbench.engine.smoothing.angles_bridge_holes`
+   finds the noise allows (ours: the network was trained on whole frames and whole joints missing).
+   Both are bridged along the path of :func:`workbench.engine.smoothing.smooth_and_fill`.
+2. The image, reflected to a multiple of 32 frames, normalised, holes bridged or zeroed
+   (``input_fill``), the mask as a second channel, is completed in one pass. With ``views`` > 1
+   (ours) its mirror, its reversal (:func:`.representation.reverse_time`) and both are completed in
+   the same batch, mapped back and averaged: the network learnt these symmetries only approximately.
+   A Gaussian over time of std ``output_sigma_frames`` (ours) removes the upsampling layers' ripple.
+3. The root's floor track is the observed one, the predicted velocities integrated across its gaps;
+   ``raw_positions`` (F, J, 3) is the network's output on it. With ``anchor`` the observed track is
+   smoothed first (:func:`anchored_trajectory`: the image is root-relative, so the root's noise would
+   enter every row), leaning :data:`SMOOTHER_PATH_SHARE` on the smoother's fill inside a gap.
+4. ``anchor`` (ours, default): the network's miss at the known entries (its bottleneck loses a few
+   cm of every pose) is smoothed row by row by the constant-velocity smoother, bridged over holes and
+   added; its noise is the observation's mean-square second difference
+   (:func:`workbench.engine.smoothing.measurement_variance`, ``robust=False``: angle noise moves
+   positions with heavy tails, which a median misses). Holes of L < ``hole_blend_frames`` frames
+   with the root unknown move towards the smoother's fill by 1 - L / ``hole_blend_frames`` (ours: the
+   network was trained for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference`
+   with ``anchor``, else the bridged observation) gives the twist, the leaves and the angles of joints
+   within ``short_lever_cm`` of all their children (mm of error turn a 3-cm lever by tens of degrees);
+   with ``anchor``, where the noise is in the angles, also those of joints aimed at one descendant
+   within ``angle_lever_cm`` (a toe carries the whole leg's noise). ``anchor=false,output_sigma_frames=0``:
+   the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
-1. The observation with its gaps bridged (angles unwrapped) gives world joint positions
-   by FK; the image (F, H) is built from them and masked where the positions are not
-   known (root or an ancestor's angles missing). Joints whose angles never vary in the
-   training data (CMU: LHipJoint, RHipJoint, LeftShoulder, RightShoulder) count as
-   observed, their bridged value being exact, and so do holes of at most
-   ``short_hole_frames`` (6, 50 ms at 120 fps; our addition) in a joint's angles: a
-   bridge is nearer the truth there than the network's fill (whole frames missing, test
-   split: 4 frames, lerp 0.18 cm, cae 0.31; 8 frames 0.45 and 0.42), and scattered
-   drop-outs would otherwise hide most of the body, a position being unknown wherever
-   any ancestor's angles are (``drop:0.5``: cae 1.65 -> 0.29 cm, lerp 0.25). These short
-   holes are bridged by the constant-velocity smoother's path
-   (:func:`workbench.engine.smoothing.smooth_and_fill`: a cubic spline through a clean take,
-   a smoothing spline through a noisy one), the longer ones linearly. Test split, 5
-   seeds, gap_mpjpe_cm, linear -> smoother: ``drop:0.3`` 0.133 -> 0.113, ``drop:0.5``
-   0.265 -> 0.226 (spline 0.108 and 0.190: through clean samples a spline is best, but
-   it follows their noise: with cubic bridges ``angular:0.5+gaps:0.01`` went 2.520 ->
-   2.693), ``angular:0.5+gaps:0.01`` 2.520 -> 2.492, ``spatial:0.5+gaps:0.01`` 1.892 ->
-   1.845. So are holes of at most ``partial_hole_frames`` (60; our addition) in frames
-   where the root is observed (part of the body missing), in takes whose noise lets the
-   angles bridge them (:func:`workbench.engine.smoothing.angles_bridge_holes`: no outliers in
-   the angles, and position noise below 0.5 cm or below the angles'). The network was
-   trained on whole frames and whole joints missing; a joint's own holes of a few dozen
-   frames the smoother of its angles bridges better. Validation (subjects 05/06 held
-   out, 3 seeds, gap_mpjpe_cm, partial holes left to the network -> bridged up to 60
-   frames): ``gaps:0.01`` 2.042 -> 1.111 (kalman 0.907), ``angular:0.5+gaps:0.01``
-   5.099 -> 4.179 (kalman 4.293), ``drop:0.5`` 0.271 -> 0.257. Under position noise
-   the network wins from about 0.5 cm (``spatial:0.4+gaps:0.01`` 1.996 -> 1.894,
-   ``spatial:0.5+...`` 2.112 -> 2.142, ``spatial:0.7+...`` 2.349 -> 2.586), and with
-   outliers in the angles by far (``angular:0.5+outliers:0.05+gaps:0.01`` 10.03 ->
-   18.34): there the holes are left to it. Up to 30 frames: ``gaps:0.01`` 1.609; up to
-   120: 0.887 on validation but 1.026 on the test split (60: 0.931; one clip). Whole-body
-   holes keep the 6 frames: longer bridges lose to the network and the blend below
-   (``block:30`` 0.806 -> 0.867 at 60). Test split, 5 seeds: ``gaps:0.01`` 1.352 ->
-   0.931, ``angular:0.5+gaps:0.01`` 2.492 -> 2.319, ``drop:0.5`` 0.226 -> 0.185.
-2. The clip is reflected at its end to a multiple of 32 frames, normalised with the
-   training statistics, unknown entries bridged or zeroed (``input_fill``), the mask
-   added as a second channel, and the network predicts the whole image in one pass;
-   the padding is cropped. With ``views`` > 1 (our addition) the take's views under
-   the symmetries of motion, in this order mirrored left/right, played backwards
-   (:func:`.representation.reverse_time`) and both, are completed in the same batch,
-   mapped back and averaged with it. The network learnt these symmetries only
-   approximately (training mirrors half the windows and never plays them backwards),
-   so the completions differ and their mean is the better one. With all four views the
-   result is itself symmetric (exactly, but for a second-order turn of the reversed
-   floor steps). Three views (the default) were chosen on validation (subjects 05/06
-   held out, two training seeds): as good as four on gaps (60 frames 2.89 and 2.92 cm
-   against 2.95 and 2.87; 120 frames 6.74 and 6.51 against 6.75 and 6.58), 1 % worse
-   under noise and dropped joints, and a quarter of the network's work cheaper. Test
-   split, 60-frame gap, one to four views: 3.67, 3.61, 3.52, 3.52 cm; 120-frame gap
-   5.50, 5.35, 5.22, 5.29.
-   The completion is then smoothed over time by a Gaussian of std
-   ``output_sigma_frames`` (1.5 frames; our addition). The strided transposed
-   convolutions (``holden``: the unpooling) leave a periodic ripple at 2, 4 and 8
-   frames: on the test split, with no corruption, the power of the network's miss
-   peaks there, at 12, 48 and 170 times the truth's own power at 8, 4 and 2 frames.
-   The ripple is a fraction of a millimetre, but it makes the filled motion jerky.
-   This Gaussian keeps 93 % of a 5-Hz motion (at 120 fps; the truth's power above
-   7 Hz is 1 % of its power at 4 Hz) and damps the ripple by half at 8 frames, 16
-   times at 4 and wipes it out at 2. Test split, ``block:120``, seed 0, mean jerk over
-   the gaps' frames, without -> with the smoothing: cae 1.29e6 -> 7.6e4 cm/s^3,
-   holden 2.37e6 -> 1.2e5, cae-vanilla 1.06e6 -> 8.8e4; the truth's 2.6e5. With 5
-   seeds the errors stay or drop: ``block:120`` 5.224 -> 5.217 cm, ``block:60`` 3.515
-   -> 3.510, ``spatial:1`` 0.614 -> 0.569, ``drop:0.5`` 0.293 -> 0.265 (``spatial``:
-   mpjpe_cm, else gap_mpjpe_cm). 1.5 frames is the narrowest Gaussian that removes
-   the ripple at 2 and 4 frames. Wider ones lower the errors a little more on
-   validation (subjects 05/06 held out; ``block:120`` 5.174, 5.158 and 5.143 cm at
-   0, 1.5 and 4 frames; ``spatial:1`` 0.574, 0.516 and 0.499) but damp the real
-   motion too (a 5-Hz motion keeps 74 % at 3 frames).
-3. The root's floor trajectory is the observed one where the root is observed and the
-   predicted velocities integrated across the gaps (attached to the known frames at
-   both ends); the image on that trajectory gives the raw network positions
-   (diagnostic ``raw_positions``, (F, J, 3), file units). With ``anchor`` the observed
-   floor points and headings are first smoothed (:func:`anchored_trajectory`; across a
-   gap inside the take the floor path is then mostly the smoother's fill) and the image
-   is built on that track: the image is root-relative, so the root's noise would
-   otherwise enter every joint's rows and the result would be put back on the noisy
-   track (test split, ``spatial:1``: 1.30 -> 0.69 cm, the root 1.31 -> 0.51 cm off; no
-   corruption: 0.017 -> 0.019 cm).
-4. IK with the skeleton's bone lengths turns them into angles (twist about single-child
-   bones and the leaves' rotations from the bridged observation, with ``anchor``
-   smoothed; below), so the result is a normal Motion. Before IK
-   the image is *anchored* to the observation (``anchor``, our addition; on by
-   default): the network's miss at the known entries (known minus predicted) is
-   smoothed row by row by the ``kalman`` engine's constant-velocity smoother
-   (:mod:`workbench.engine.smoothing`), bridged linearly across each hole and added to the
-   prediction. The smoother's measurement noise is estimated from the observation
-   (the miss's own fast wobble is the network's, to be kept), its smoothing ratio by
-   the risk estimate on the miss. The noise variance is the mean square of the
-   observation's second differences (:func:`workbench.engine.smoothing.measurement_variance`
-   with ``robust=False``), not the median-based estimate the ``kalman`` engine uses on
-   angles. Angle noise moves the joint positions with heavy tails (a hip's turn lifts
-   the foot by 1 - cos), the median misses up to half their variance, and the smoother,
-   told the noise is small, keeps it. Test split, 5 seeds, median -> mean square:
-   ``angular:0.5`` mpjpe 1.250 -> 1.114 cm (kalman 1.196), jerk 1.34e6 -> 3.2e5
-   cm/s^3 (the truth's 2.9e5); ``angular:0.5+gaps:0.01`` 1.778 -> 1.636;
-   ``+outliers:0.05`` 6.77 -> 3.41; ``spatial:1`` 0.576 -> 0.569; gaps alike
-   (``block:60`` 3.509 -> 3.510). The mean square counts the motion's own
-   accelerations too: a clean take moves by 0.036 cm instead of 0.018. The result
-   keeps the observation's course and sheds its noise: the autoencoder's bottleneck
-   loses a few cm of every pose (test split, no corruption: 3.9 cm, anchored 0.04
-   cm), a noisy root makes its velocity rows 10-20 training deviations wrong
-   (``spatial:1.5``: 9.2 cm, anchored 0.80 cm), and a filled gap joins its ends.
-   ``anchor=false`` returns the network's output as it is, as in the paper
-   (unsmoothed with ``output_sigma_frames=0``). Observed frames change slightly
-   either way. Joints whose children all sit within ``short_lever_cm`` of them (5
-   cm; CMU: the hands and finger bases) are not aimed from positions, where a few
-   mm of error turn a 3-cm lever by tens of degrees: they keep their observed
-   angles, bridged linearly across the holes, as ``lerp`` does, and with ``anchor``
-   smoothed first (:func:`workbench.engine.smoothing.smooth_joint_angles`: position noise
-   makes the observed hand angles noisy too); IK aims them only when
-   they are never observed. Test split, RMS angle error, aimed -> kept: no corruption
-   0.088 -> 0.051 degrees (0.042 kept unsmoothed), 60-frame gap 2.28 -> 1.71,
-   ``drop:0.5`` 10.3 -> 3.3, ``spatial:1.5`` 4.69 -> 3.32 (7.9 kept unsmoothed).
-   With ``anchor`` every joint's observed angles are smoothed so (our addition): the
-   twist and the leaves come from them, and angle noise left them as noisy as the
-   input. The joints aimed at one descendant within ``angle_lever_cm`` (13.5 cm; CMU:
-   the feet, LowerBack, Spine, Neck, Neck1) keep their smoothed angles in the frames
-   they are observed, when the take's noise is in the angles
-   (:func:`workbench.engine.smoothing.angles_are_quieter`): a toe's position then carries the
-   noise of the whole leg, and aimed at it from 13 cm the foot was off by 7-10 degrees
-   under ``angular:0.5`` (kalman's feet: 1.6-2.0). Across their holes IK aims them and
-   bridges the kept angles' departure from the aim, so they join without a jump.
-   Under position noise, or with outliers in the angles (the smoother passes them),
-   they are aimed as before. Test split, 5 seeds, before -> after (rms_angle_deg;
-   mpjpe_cm): ``angular:0.5`` 3.12 -> 1.36 (kalman 1.27); 1.114 -> 1.070 cm;
-   ``angular:0.9`` 7.00 -> 2.32 (kalman 2.03); 2.035 -> 1.847; ``angular:0.1`` 0.60
-   -> 0.38; ``angular:0.5+gaps:0.01`` 3.80 -> 2.22; 1.636 -> 1.579;
-   ``+outliers:0.05`` 12.2 -> 11.5; 3.408 both. The cost is the smoothing of angles
-   that were clean: no corruption 0.068 -> 0.079 degrees; ``spatial:1`` 2.08 -> 2.13
-   (the spatial corruption keeps the true twist); positions and gaps level (``block:60``
-   3.510 both).
-   Inside a hole of L unknown frames of an image row with L < ``hole_blend_frames``
-   (60; our addition), where the whole body is missing (the root unknown), the
-   anchored output moves towards the constant-velocity smoother's fill of the row's
-   known entries, by the weight 1 - L / 60: the network was trained for long gaps, and
-   on short ones the smoother (and a spline) fill better.
-   Test split, whole frames missing, gap error without -> with, spline: 8 frames 0.45
-   -> 0.20 cm (0.17), 15 frames 0.74 -> 0.41 (0.37), 30 frames 1.61 -> 1.29 (1.38),
-   45 frames 2.74 -> 2.59 (3.01); 60 and more unchanged.
-   With ``keep_observed=true`` the observed angles and root positions come back
-   exactly: the miss is added in full at the known entries (not smoothed), so the
-   filled stretch joins the kept frames without a jump; IK then aims the missing
-   joints from the exactly known positions. (So it fills gaps but does not denoise.)
+Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
+them as known entries (in a first pass's body frame where the root is missing); the network's miss
+there is added in full, so they are met as far as the bone lengths allow.
 
-Constraints (the paper's tertiary motion blending): ``clean(observation,
-constraints={joint: (frames, positions)})`` with ``frames`` (n,) frame indices and
-``positions`` (n, 3) world positions in file units enters those positions as known
-entries of the image. Where the root is missing they are placed in the body frame of
-a first, unconstrained pass's trajectory, which the result then keeps. The network
-takes them as known entries (it was trained with such partial poses inside gaps), and
-they are then met, as far as the bone lengths allow: the network's miss at the
-constrained entries is added to its output, blended in linearly from the anchor's
-correction at the neighbouring known entries of the same row (from zero with
-``anchor=false``, from their own miss with ``keep_observed=true``). ``raw_positions``
-stays the network's output.
+History and results: docs/engines/cae.md.
 """
 
 from __future__ import annotations
@@ -196,22 +75,13 @@ from .representation import (
     wrap,
 )
 
-#: most image columns (views x padded frames) per network call: per column, bigger calls
-#: are slower on these CPUs (2-core AVX2 EPYC, cae: 27 us up to 14k columns, 34-43 us
-#: from 21k; the 3 views of a 7,200-frame take take 931 ms in one call, 600 in three)
+#: most image columns (views x padded frames) per network call: bigger calls run slower per column
 MAX_CALL_COLUMNS = 10_000
 #: the views' symmetries, (mirrored, reversed), in the order ``views`` takes them
 VIEWS = ((False, False), (True, False), (False, True), (True, True))
 
 Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
-#: with ``anchor``, the share of the constant-velocity smoother's fill in the root's floor
-#: path across a gap inside the take, the rest the network's integrated path. The root
-#: off in the gap's frames, cm, network's path only / 0.5 / 0.75 / the fill only, test
-#: split, 5 seeds: 15-frame gap 0.50 / 0.36 / 0.31 / 0.29, 30 frames 1.41 / 1.16 / 1.10 /
-#: 1.08, 60 frames 3.30 / 2.97 / 2.97 / 3.09, 120 frames 7.78 / 6.07 / 5.52 / 5.35;
-#: validation (subjects 05/06 held out, 3 seeds): 0.29 / 0.25 / 0.25 / 0.27, 1.02 / 0.80 /
-#: 0.74 / 0.72, 2.79 / 2.16 / 1.95 / 1.84, 5.14 / 3.97 / 3.67 / 3.65. 0.75 is at or below
-#: 0.5 at every length; the fill alone is not, and leaves the network's steps unused
+#: with ``anchor``, the smoother's share of the root's path across a gap inside the take: the network drifts
 SMOOTHER_PATH_SHARE = 0.75
 
 

@@ -1,51 +1,42 @@
 """Training shared by ``cae``, ``cae-vanilla`` and ``holden`` (Kaufmann et al. 2020, §3.3).
 
-Each step draws a batch of windows (``window_frames`` frames) of training images, each
-window from a clip drawn uniformly (``sampling="clips"``, the default) or with
-probability proportional to its length (``"frames"``), at a random start (clips too
-short are reflected at their end, as at inference), augmented and normalised
-(:meth:`WindowSampler.windows`). Uniform clips matter here: two long walks hold a
-third of our training frames, the runs and jogs 5 %; drawn by frames, the ``cae``
-scored 4.50 cm on a 60-frame gap of the test split, drawn by clips 3.57 cm
-(validation, subjects 05 and 06 held out: 2.89 and 2.59 cm; linear input fill, both).
+Each step draws a batch of windows (``window_frames`` frames) of training images, each window from
+a clip drawn uniformly (``sampling="clips"``, the default; ours: a few long takes hold much of our
+training frames) or with probability proportional to its length (``"frames"``), at a random start
+(clips too short are reflected at their end, as at inference), augmented and normalised
+(:meth:`WindowSampler.windows`).
 
-Every window gets one of two holes, at random with equal chance:
+Every window gets one of two holes, at random with equal chance (the paper's two):
 
 * a block of whole frames (every joint and the root missing), length drawn from
-  N(mu_e, gap_sigma_frames^2), clipped to 1..T-2, at a uniform start with at least one
-  known frame on each side; the curriculum raises mu_e from 10 frames by 10 every
-  ``curriculum_epochs`` epochs up to 120. In 30 % of the blocks of 10 frames or more,
-  1 to 3 random joints stay known over 5 to 30 frames inside the block (partial poses,
-  e.g. tracked end effectors): this teaches the network to follow such entries, which
-  is what the constraints of tertiary motion blending are;
-* 1 to 3 joints whose angles are missing for the whole window (among the joints whose
-  angles vary in the training data): in this position image, every joint below them
-  is unknown (:func:`workbench.core.motion.position_unknown`), exactly what the ``joints:N``
-  corruption does.
+  N(mu_e, gap_sigma_frames^2), clipped to 1..T-2, at a uniform start with at least one known
+  frame on each side; the curriculum raises mu_e from 10 frames by 10 every ``curriculum_epochs``
+  epochs up to 120. In :data:`PARTIAL_PROBABILITY` of the blocks of 10 frames or more, 1 to 3
+  random joints stay known over 5 to 30 frames inside the block (ours: partial poses, e.g.
+  tracked end effectors, teach the network to follow the constraints of tertiary motion blending);
+* 1 to 3 joints whose angles are missing for the whole window (among the joints whose angles vary
+  in the training data): in this position image every joint below them is unknown
+  (:func:`workbench.core.motion.position_unknown`), exactly what the ``joints:N`` corruption does.
 
-Augmentation (our six training subjects are a small fraction of the paper's data):
-each window played at a random speed (linear interpolation; velocities scaled with
-it), its body and motion scaled uniformly by a few per cent, mirrored left/right
-(joints swapped by name) half of the time, and Gaussian noise on the known input
-entries (the target stays clean); the images may include copies of the clips with
-other upper-body poses (``pose_copies``, made in :meth:`.engine.ConvAutoencoderEngine.fit`).
-Rotation about the up axis would change nothing: the image is heading-invariant.
+Augmentation (ours: our six training subjects are a small fraction of the paper's data): each
+window played at a random speed (linear interpolation; velocities scaled with it), its body and
+motion scaled uniformly by a few per cent, mirrored left/right (joints swapped by name) half of the
+time, and Gaussian noise on the known input entries (the target stays clean); the images may
+include copies of the clips with other upper-body poses (``pose_copies``, made in
+:meth:`.engine.ConvAutoencoderEngine.fit`). Rotation about the up axis would change nothing: the
+image is heading-invariant.
 
 Unknown entries enter bridged linearly over time from the known entries of their row
-(``input_fill="linear"``, the default; rows never known enter as 0, the training mean)
-or all as 0 (``"zero"``, the paper), and the known-mask is the second input channel.
-The bridge gives the network the gap's ends where it works on the gap; it lowered the
-validation errors of a 60-frame gap from 3.07 to 2.89 cm and of dropped joints
-(``drop:0.5``) from 2.94 to 2.51 cm, and raised that of a 120-frame gap from 6.3 to
-6.8 cm (frames sampling, both).
+(``input_fill="linear"``, the default; ours: the network sees the gap's ends where it works on the
+gap; rows never known enter as 0, the training mean) or all as 0 (``"zero"``, the paper); the
+known-mask is the second input channel.
 
-The loss is the L1 distance over the whole window (all rows, all frames), Adam at
-``learning_rate``, held for the first three quarters of the epochs and then annealed
-(cosine) to a tenth. The weights kept are the exponential moving average of the
-steps' weights (``ema_decay`` 0.998 per step: over about the last 20 epochs), which
-damps the last steps' noise: on validation (subjects 05 and 06 held out, same seed)
-the 120-frame gap fell from 6.92 to 6.67 cm, the 60-frame gap from 3.10 to 3.09, and
-no other column rose.
+The loss is the L1 distance over the whole window (all rows, all frames), as in the paper. Adam at
+``learning_rate`` is held for the first three quarters of the epochs, then annealed (cosine) to a
+tenth. The weights kept are the exponential moving average of the steps' weights (``ema_decay``
+per step; ours: it damps the last steps' noise).
+
+History and results: docs/engines/cae.md.
 """
 
 from __future__ import annotations

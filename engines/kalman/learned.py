@@ -1,18 +1,16 @@
-"""``kalman-learned``: a data-driven Kalman filter whose system matrices are learnt from
-clean training motion (Lou and Chai 2010, §4.2: their third baseline, "a simple
-data-driven algorithm, which learns the system matrices from the same set of training
-data").
+"""``kalman-learned``: a data-driven Kalman filter whose system matrices are learnt from clean
+training motion (Lou and Chai 2010, §4.2: their third baseline, "a simple data-driven
+algorithm, which learns the system matrices from the same set of training data").
 
-The model (why per joint, why these choices: see below), for every non-root joint with
-rotation channels, with x_t its 3 unwrapped Euler angles (deg) at frame t and the state
-``s_t = (x_t, x_{t-1})``::
+The model, for every non-root joint with rotation channels, with x_t its 3 unwrapped Euler
+angles (deg) at frame t and the state ``s_t = (x_t, x_{t-1})``::
 
     x_{t+1} = A1 x_t + A2 x_{t-1} + c + w_t,   w_t ~ N(0, Q)
     y_t     = x_t + e_t,   e_t ~ N(0, diag r),  skipped where the joint is missing
 
 smoothed exactly (Rauch-Tung-Striebel means) by :func:`~engines.kalman.coupled.coupled_smooth`.
 
-Fitting (:meth:`LearnedKalman.fit`, about a second on the whole CMU training split):
+Fitting (:meth:`LearnedKalman.fit`, on clean clips of one frame rate):
 
 * dynamics by ridge least squares on the training clips, in acceleration form
   ``x_{t+1} - 2 x_t + x_{t-1} = Bx (x_t - mean) + Bv (x_t - x_{t-1}) + w`` (ridge
@@ -30,22 +28,14 @@ shrunk towards the identity by ``correlation_shrinkage``: ``Q = S ((1-a) C + a I
 constant-velocity ones. The root position and rotation, and channels constant in the
 observation, are cleaned by ``kalman``.
 
-Why this form. Lou and Chai report that this baseline "cannot preserve spatial-temporal
-patterns"; we checked what it can do on held-out CMU subjects (16, 35, 127; 0.1, 0.5,
-0.9 x channel-std noise, with and without gaps), training on 3 clips or on the whole
-training split:
+Choices (the paper does not give its model): per joint, not one full-body model (a small state
+and few parameters to fit from a few thousand frames, and a gap, a whole joint missing, never
+splits a state); constant velocity by default (the fitted dynamics' mean reversion towards the
+training subjects' pose and their damping do not transfer to other performers); the clip's own
+noise scales, as in ``kalman`` (the training scale does not fit another clip's motion), with
+only the within-joint correlation learnt, half shrunk by default.
 
-* full-body dynamics (93 channels, state 186) need ~35k parameters from a few thousand
-  frames and a 186-dim state that is slow to smooth; per joint, A has 18 free
-  parameters and the state 6 dimensions, and the gaps (whole joints) never split a
-  joint's state;
-* the fitted dynamics (``learned_dynamics=true``), with Q at its training scale, are
-  clearly *worse* than ``kalman`` on held-out subjects (e.g. 2.6 vs 0.5 deg at 0.1
-  noise): mean reversion towards the training subjects' mean pose and learnt damping do
-  not transfer, and the training noise scale does not fit another clip's motion;
-* keeping constant velocity, with the per-clip scales of ``kalman`` and the learnt
-  within-joint correlation of the process noise (half shrunk), is 1-3 % better than
-  ``kalman`` in most settings and never much worse; that is the default.
+History and results: docs/engines/kalman.md.
 """
 
 from __future__ import annotations
