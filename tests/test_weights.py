@@ -16,7 +16,9 @@ from workbench.engine.weights import MANIFEST_FILE, WEIGHTS_FILE, code_commit, l
 
 @pytest.fixture
 def saved(tmp_path):
-    save_weights(tmp_path, {"w": np.arange(6.0).reshape(2, 3)}, {"engine": "demo", "params": {"k": 1}})
+    save_weights(
+        tmp_path, {"w": np.arange(6.0).reshape(2, 3)}, {"engine": "demo", "params": {"k": 1}, "skeleton_signature": "x"}
+    )
     return tmp_path
 
 
@@ -66,3 +68,21 @@ def test_pickled_arrays_are_never_unpickled(saved):
     (saved / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
     with pytest.raises(EngineError, match="unreadable weights"):
         load_weights(saved)
+
+
+def test_a_manifest_that_cannot_be_written_leaves_the_old_weights_as_they_were(saved):
+    before = {name: (saved / name).read_bytes() for name in (WEIGHTS_FILE, MANIFEST_FILE)}
+    with pytest.raises(TypeError):
+        save_weights(saved, {"w": np.zeros(3)}, {"engine": "demo", "skeleton_signature": "x", "bad": object()})
+    assert {name: (saved / name).read_bytes() for name in before} == before
+    load_weights(saved)  # still a matching pair
+
+
+def test_a_manifest_that_is_not_one_is_refused_by_name(tmp_path):
+    save_weights(tmp_path, {"w": np.zeros(3)}, {"engine": "demo", "skeleton_signature": "x"})
+    (tmp_path / MANIFEST_FILE).write_text("[1, 2]")
+    with pytest.raises(EngineError, match="not a weights manifest"):
+        load_weights(tmp_path)
+    save_weights(tmp_path, {"w": np.zeros(3)}, {"engine": "demo"})
+    with pytest.raises(EngineError, match="not a weights manifest"):
+        load_weights(tmp_path)

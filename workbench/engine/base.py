@@ -37,6 +37,26 @@ import numpy as np
 from ..core.motion import Motion, Observation
 from ..core.skeleton import Skeleton
 
+__all__ = [
+    "Engine",
+    "EngineInfo",
+    "CleanResult",
+    "NoParams",
+    "EngineError",
+    "NotFittedError",
+    "Pipeline",
+    "TASKS",
+    "SPACES",
+    "WEIGHTS_OPTION",
+    "ROLE",
+    "TRAINED",
+    "TRAINING",
+    "INFERENCE",
+    "trained",
+    "training",
+    "param_roles",
+]
+
 TASKS = frozenset({"denoise", "fill"})
 #: the spec option of trainable engines that names a folder of trained weights
 WEIGHTS_OPTION = "weights"
@@ -47,17 +67,63 @@ TRAINED, TRAINING, INFERENCE = "trained", "training", "inference"
 
 
 def trained(default: typing.Any) -> typing.Any:
-    """A parameter field fixed by the weights (``lstm_units: int = trained(64)``)."""
+    """A parameter field fixed by the weights (``lstm_units: int = trained(64)``).
+
+    Loading weights takes their value of it, and a spec that asks for another is refused
+    (:meth:`Engine.weights_params`); the trained parameters name the weights' variant
+    (:attr:`Engine.variant`).
+
+    Parameters
+    ----------
+    default : object
+        The field's default value.
+
+    Returns
+    -------
+    dataclasses.Field
+        A field whose metadata give it the role :data:`TRAINED` (under :data:`ROLE`).
+    """
     return field(default=default, metadata={ROLE: TRAINED})
 
 
 def training(default: typing.Any) -> typing.Any:
-    """A parameter field used by ``fit`` only (``epochs: int = training(20)``)."""
+    """A parameter field used by ``fit`` only (``epochs: int = training(20)``).
+
+    Loading weights takes their value of it, so that the spec says how the loaded weights
+    were trained (:meth:`Engine.weights_params`).
+
+    Parameters
+    ----------
+    default : object
+        The field's default value.
+
+    Returns
+    -------
+    dataclasses.Field
+        A field whose metadata give it the role :data:`TRAINING` (under :data:`ROLE`).
+    """
     return field(default=default, metadata={ROLE: TRAINING})
 
 
 def param_roles(params: typing.Any) -> dict[str, str]:
-    """Each field of a Params dataclass (or instance) and its role, in field order."""
+    """Each field of a Params dataclass (or instance) and its role, in field order.
+
+    Parameters
+    ----------
+    params : type or object
+        A Params dataclass or an instance of one.
+
+    Returns
+    -------
+    dict of str to str
+        Field name to role: :data:`TRAINED`, :data:`TRAINING` or, for a plain field,
+        :data:`INFERENCE`.
+
+    Raises
+    ------
+    TypeError
+        ``params`` is not a dataclass or an instance of one.
+    """
     return {f.name: f.metadata.get(ROLE, INFERENCE) for f in dataclasses.fields(params)}
 
 
@@ -77,17 +143,50 @@ def _moving(skeleton: Skeleton) -> str:
 
 
 class EngineError(ValueError):
-    """A user-facing problem with an engine: bad spec, wrong skeleton, unusable input."""
+    """A user-facing problem with an engine: bad spec, wrong skeleton, unusable input.
+
+    Its message says what is wrong and, where it can, what to do instead. A subclass of
+    ``ValueError``.
+    """
 
 
 class NotFittedError(EngineError):
-    """``clean`` was called on a trainable engine that has neither been fitted nor loaded."""
+    """``clean`` was called on a trainable engine that has neither been fitted nor loaded.
+
+    Raised by :meth:`Engine.require_fitted` (which :meth:`Engine.save` calls too); a
+    subclass of :class:`EngineError`.
+    """
 
 
 @dataclass(frozen=True)
 class EngineInfo:
-    """What an engine is. tasks: subset of {"denoise", "fill"}; space: "angles" or
-    "positions"; keeps_observed: observed samples come back unchanged."""
+    """What an engine is: its name, what it is for and what it promises.
+
+    Attributes
+    ----------
+    name : str
+        The engine's name, the first part of its specs (``gaussian`` of
+        ``gaussian:sigma_ms=58``).
+    summary : str
+        What it does, in one line.
+    tasks : frozenset of str
+        A subset of :data:`TASKS`, {"denoise", "fill"}: the tasks it does. The
+        conformance suite (:mod:`workbench.testing`) requires at least one.
+    space : {"angles", "positions"}
+        What it cleans (:data:`SPACES`): the joint angles of the channel matrix, or the
+        joint positions, brought back to angles by IK.
+    trainable : bool
+        It has fitted state: ``fit`` learns it and weights hold it.
+    keeps_observed : bool
+        Observed samples come back unchanged (angles up to whole turns of 360 degrees).
+    citation : str
+        Where the method comes from; empty if nowhere in particular.
+
+    Raises
+    ------
+    ValueError
+        ``tasks`` is not a subset of :data:`TASKS` or ``space`` is not in :data:`SPACES`.
+    """
 
     name: str
     summary: str
@@ -104,7 +203,18 @@ class EngineInfo:
 
 @dataclass(frozen=True)
 class CleanResult:
-    """The cleaned motion and named diagnostics (arrays with the frame axis first)."""
+    """The cleaned motion and named diagnostics: what :meth:`Engine.clean` returns.
+
+    Attributes
+    ----------
+    motion : Motion
+        The cleaned take: same skeleton, fps and frame count as the input, finite
+        everywhere.
+    diagnostics : Mapping[str, ndarray]
+        Named arrays the engine can explain itself with, each of shape (F, ...) with the
+        frame axis first, e.g. ``filter_sigma_frames`` (F, C) for filter-predicting
+        engines (default: none).
+    """
 
     motion: Motion
     diagnostics: Mapping[str, np.ndarray] = field(default_factory=dict)
@@ -112,7 +222,7 @@ class CleanResult:
 
 @dataclass(frozen=True)
 class NoParams:
-    """Engines without parameters."""
+    """The parameters of engines without parameters: a frozen dataclass with no fields."""
 
 
 def _coerce(value: str, kind: typing.Any, name: str) -> typing.Any:
@@ -135,8 +245,40 @@ def _coerce(value: str, kind: typing.Any, name: str) -> typing.Any:
 
 
 class Engine:
-    """Base class with the shared machinery: parameters from spec strings, skeleton
-    checks, saving and loading fitted state with a checksummed manifest."""
+    """Base class of every engine, with the machinery they share.
+
+    Parameters from spec strings (:meth:`from_options`, :attr:`spec`), skeleton checks
+    (:meth:`training_motions`, :meth:`check_skeleton`), and saving and loading fitted
+    state with a checksummed manifest (:meth:`save`, :meth:`load`). A subclass sets
+    :attr:`info` and :attr:`Params` and implements :meth:`clean`; a trainable one also
+    :meth:`fit`, :meth:`state_arrays` and :meth:`load_state_arrays`.
+
+    Parameters
+    ----------
+    params : Params, optional
+        The engine's parameters (default: ``Params()``, every field at its default).
+
+    Attributes
+    ----------
+    info : EngineInfo
+        What the engine is (a class attribute every engine sets).
+    Params : type
+        The frozen dataclass of its parameters, units in the field names, each field's
+        role set by :func:`trained`, :func:`training` or neither (inference); a class
+        attribute, :class:`NoParams` by default.
+    QUICK_FIT : Mapping[str, str]
+        Spec options under which ``fit`` takes seconds on a few short takes: what the
+        conformance suite trains with to check that a seeded fit repeats (a class
+        attribute, empty by default).
+    skeleton_signature_ : str or None
+        The fitted skeleton layout, :meth:`workbench.core.skeleton.Skeleton.signature`;
+        trainable engines set it in ``fit`` and :meth:`load` sets it. None: not fitted.
+    weights_folder : Path or None
+        The folder that the spec option ``weights=DIR`` names, to load trained state from
+        instead of the committed weights (None: the committed ones).
+    params : Params
+        The engine's parameters, an instance of :attr:`Params`.
+    """
 
     info: ClassVar[EngineInfo]
     Params: ClassVar[type] = NoParams
@@ -155,8 +297,27 @@ class Engine:
     # -- parameters -----------------------------------------------------------------
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> "Engine":
-        """Build from ``{"sigma_ms": "58"}``-style text options, with clear errors. A
-        trainable engine also takes ``weights=DIR`` (see :attr:`weights_folder`)."""
+        """Build an engine from ``{"sigma_ms": "58"}``-style text options, with clear errors.
+
+        Parameters
+        ----------
+        options : Mapping[str, str]
+            Parameter names and their values as text, parsed as the field's type (``int``,
+            ``float``, ``str``; ``bool`` from ``true``/``false``, ``yes``/``no``,
+            ``on``/``off`` or ``1``/``0``). A trainable engine also takes ``weights=DIR``
+            (see :attr:`weights_folder`; ``~`` expanded).
+
+        Returns
+        -------
+        Engine
+            An instance of this class; the parameters not named are at their defaults.
+
+        Raises
+        ------
+        EngineError
+            An option names no parameter (the message lists the valid ones), a value does
+            not parse as its field's type, or ``Params`` refuses the values.
+        """
         fields = {f.name: f for f in dataclasses.fields(cls.Params)}
         hints = typing.get_type_hints(cls.Params)
         values = {}
@@ -180,7 +341,15 @@ class Engine:
 
     @property
     def spec(self) -> str:
-        """The spec string that recreates this engine, e.g. ``gaussian:sigma_ms=58``."""
+        """The spec string that recreates this engine, e.g. ``gaussian:sigma_ms=58``.
+
+        Returns
+        -------
+        str
+            The engine's name, then after a colon, comma separated, each parameter that
+            differs from its default and ``weights=DIR`` when :attr:`weights_folder` is
+            set; the name alone when there are none.
+        """
         default = self.Params()
         changed = [
             f"{f.name}={getattr(self.params, f.name)}"
@@ -193,17 +362,83 @@ class Engine:
 
     # -- the protocol ---------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "Engine":
+        """Fit the engine to clean training motions.
+
+        The base class has nothing to fit. A trainable engine overrides it: it checks the
+        motions (:meth:`training_motions`), learns its state and records the skeleton
+        layout in :attr:`skeleton_signature_`; two seeded fits on the same motions give
+        the same state.
+
+        Parameters
+        ----------
+        motions : Sequence[Motion]
+            Clean takes (positional only).
+
+        Returns
+        -------
+        Engine
+            The engine itself.
+
+        Raises
+        ------
+        EngineError
+            In a trainable engine: motions it cannot train on.
+        """
         return self
 
     def clean(self, observation: Observation, /) -> CleanResult:
+        """Clean an observation: the one method every engine implements.
+
+        Parameters
+        ----------
+        observation : Observation
+            The corrupted take and its observed mask (F, J), NaN where missing
+            (positional only); left unchanged.
+
+        Returns
+        -------
+        CleanResult
+            A complete Motion of the same skeleton, fps and frame count, finite everywhere
+            and sharing no memory with the input (its observed samples unchanged where
+            ``info.keeps_observed``), and named diagnostics with the frame axis first.
+
+        Raises
+        ------
+        NotFittedError
+            A trainable engine that is neither fitted nor loaded (:meth:`require_fitted`).
+        EngineError
+            A skeleton layout other than the fitted one (:meth:`check_skeleton`), or input
+            the engine cannot use.
+        NotImplementedError
+            In the base class: every engine overrides it.
+        """
         raise NotImplementedError
 
     # -- skeleton checks ------------------------------------------------------------
     def training_motions(self, motions: Sequence[Motion], same_fps: bool = False) -> list[Motion]:
-        """``motions`` as a list, checked as every trained engine's ``fit`` needs them: at
-        least one, all of one skeleton layout (and, with ``same_fps``, one frame rate),
-        none with translated joints, which no trained engine models yet. Raises
-        EngineError saying which rule they break."""
+        """``motions`` as a list, checked as every trained engine's ``fit`` needs them.
+
+        At least one, all of one skeleton layout (and, with ``same_fps``, one frame rate),
+        none with translated joints, which no trained engine models yet.
+
+        Parameters
+        ----------
+        motions : Sequence[Motion]
+            The training takes.
+        same_fps : bool
+            Also require one frame rate (to within 1e-6 fps).
+
+        Returns
+        -------
+        list of Motion
+            ``motions``, in their order.
+
+        Raises
+        ------
+        EngineError
+            Saying which rule they break; for translated joints it names the classical
+            engines to clean such takes with.
+        """
         motions = list(motions)
         name = self.info.name
         if not motions:
@@ -228,7 +463,22 @@ class Engine:
         return motions
 
     def check_skeleton(self, skeleton: Skeleton) -> None:
-        """Raise EngineError if this engine was fitted for another skeleton layout."""
+        """Refuse a skeleton of another layout than the one this engine was fitted for.
+
+        An engine that is not fitted (:attr:`skeleton_signature_` None) accepts any.
+
+        Parameters
+        ----------
+        skeleton : Skeleton
+            The take's skeleton.
+
+        Raises
+        ------
+        EngineError
+            ``skeleton.signature()`` differs from :attr:`skeleton_signature_`. The message
+            says how to train the engine for it, or, when it has translated joints, which
+            classical engines can clean it.
+        """
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
             mine = (
                 f"engine {self.info.name!r} was trained for another skeleton ({self.skeleton_description_}); "
@@ -247,11 +497,27 @@ class Engine:
 
     @property
     def skeleton_description_(self) -> str:
+        """The fitted skeleton layout in words, for messages: ``31 joints rooted at 'Hips'``.
+
+        Returns
+        -------
+        str
+            The joint count and root name read from :attr:`skeleton_signature_`;
+            ``"unknown"`` when the engine is not fitted.
+        """
         sig = self.skeleton_signature_ or ""
-        joints = sig.split(";")
+        joints = [part for part in sig.split(";") if not part.startswith("translated:")]
         return f"{len(joints)} joints rooted at {joints[0].split('<')[0]!r}" if sig else "unknown"
 
     def require_fitted(self) -> None:
+        """Refuse a trainable engine that has neither been fitted nor loaded.
+
+        Raises
+        ------
+        NotFittedError
+            ``info.trainable`` and :attr:`skeleton_signature_` is None; the message says
+            how to train it or give it weights.
+        """
         if self.info.trainable and self.skeleton_signature_ is None:
             raise NotFittedError(
                 f"engine {self.spec!r} is not trained: run `workbench train '{self.spec}'` or give it weights"
@@ -259,21 +525,82 @@ class Engine:
 
     # -- fitted state ---------------------------------------------------------------
     def state_arrays(self) -> dict[str, np.ndarray]:
-        """Fitted state as named arrays (trainable engines override)."""
+        """Fitted state as named arrays (trainable engines override).
+
+        Returns
+        -------
+        dict of str to ndarray
+            Plain numeric arrays, which :meth:`save` stores in ``weights.npz`` (never
+            pickled) and :meth:`load_state_arrays` takes back.
+
+        Raises
+        ------
+        NotImplementedError
+            The engine has no fitted state (the base class).
+        """
         raise NotImplementedError(f"engine {self.info.name!r} has no fitted state")
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
+        """Take back fitted state saved from :meth:`state_arrays` (trainable engines override).
+
+        :meth:`load` calls it after setting :attr:`params` from the manifest
+        (:meth:`weights_params`) and before setting :attr:`skeleton_signature_`.
+
+        Parameters
+        ----------
+        arrays : Mapping[str, ndarray]
+            The arrays of ``weights.npz``, checksum verified.
+        manifest : Mapping
+            The weights' manifest (``manifest.json``).
+
+        Raises
+        ------
+        NotImplementedError
+            The engine has no fitted state (the base class).
+        EngineError
+            In an override: arrays missing or of shapes that do not fit the parameters.
+        """
         raise NotImplementedError(f"engine {self.info.name!r} has no fitted state")
 
     def training_record(self) -> dict[str, typing.Any]:
-        """What the manifest keeps of the last ``fit`` beyond the parameters (a torch
-        engine's loss per epoch); JSON values."""
+        """What the manifest keeps of the last ``fit`` beyond the parameters.
+
+        Returns
+        -------
+        dict of str to object
+            JSON values, e.g. a torch engine's loss per epoch; empty in the base class.
+        """
         return {}
 
     def save(self, folder: str | Path, extra_manifest: Mapping | None = None) -> Path:
-        """Save fitted state and its manifest into ``folder``; returns the manifest path.
-        :func:`workbench.engine.training.train_engine` writes the training's record
-        (``extra_manifest``: clips, data sets and their licences, minutes, test scores)."""
+        """Save fitted state and its manifest into ``folder``.
+
+        The manifest holds the engine's name, :attr:`variant`, :attr:`spec`, parameters
+        and :attr:`skeleton_signature_`, then :meth:`training_record` and
+        ``extra_manifest``; :func:`workbench.engine.weights.save_weights` adds the
+        checksum and the code's version. :func:`workbench.training.train_engine` writes
+        the training's record (``extra_manifest``: clips, data sets and their licences,
+        minutes, test scores).
+
+        Parameters
+        ----------
+        folder : str or Path
+            Created if missing; its ``weights.npz`` and ``manifest.json`` are replaced.
+        extra_manifest : Mapping, optional
+            More manifest entries, JSON values; they override entries of the same name.
+
+        Returns
+        -------
+        Path
+            The manifest's path, ``folder / "manifest.json"``.
+
+        Raises
+        ------
+        NotFittedError
+            A trainable engine that is not fitted.
+        NotImplementedError
+            An engine with no fitted state.
+        """
         from .weights import save_weights
 
         self.require_fitted()
@@ -289,8 +616,32 @@ class Engine:
         return save_weights(folder, self.state_arrays(), manifest)
 
     def load(self, folder: str | Path) -> "Engine":
-        """Load fitted state saved by :meth:`save` (checksum verified, no pickle), its
-        trained and training parameters with it (:meth:`weights_params`)."""
+        """Load fitted state saved by :meth:`save`, its trained and training parameters with it.
+
+        The checksum is verified and nothing is unpickled
+        (:func:`workbench.engine.weights.load_weights`); then :attr:`params` are set by
+        :meth:`weights_params`, the state by :meth:`load_state_arrays`, and
+        :attr:`skeleton_signature_` from the manifest.
+
+        Parameters
+        ----------
+        folder : str or Path
+            The folder holding ``manifest.json`` and ``weights.npz``.
+
+        Returns
+        -------
+        Engine
+            The engine itself.
+
+        Raises
+        ------
+        EngineError
+            Missing, corrupt or changed files, weights of another engine, parameters the
+            weights refuse (:meth:`weights_params`), or arrays that
+            :meth:`load_state_arrays` refuses.
+        NotImplementedError
+            An engine with no fitted state.
+        """
         from .weights import load_weights
 
         arrays, manifest = load_weights(folder)
@@ -298,16 +649,42 @@ class Engine:
             raise EngineError(
                 f"{folder}: these weights are for engine {manifest.get('engine')!r}, not {self.info.name!r}"
             )
-        self.params = self.weights_params(manifest, folder)
-        self.load_state_arrays(arrays, manifest)
+        asked, self.params = self.params, self.weights_params(manifest, folder)
+        try:
+            self.load_state_arrays(arrays, manifest)
+        except BaseException:
+            self.params = asked  # all or nothing: as it was before
+            raise
         self.skeleton_signature_ = manifest["skeleton_signature"]
         return self
 
     def weights_params(self, manifest: Mapping, folder: str | Path = "") -> typing.Any:
-        """This engine's parameters with the trained and training ones of the weights of
-        ``manifest`` (one missing there, newer than the weights, at its default), the
-        inference ones as they are. Raises EngineError where the spec asked for another
-        value of a trained one, or the weights record a parameter this engine lacks."""
+        """This engine's parameters with the trained and training ones of some weights.
+
+        The trained and training parameters take the values ``manifest`` records (one
+        missing there, newer than the weights, at its default); the inference ones stay
+        as they are. A trained parameter that the spec leaves at its default counts as
+        not asked for, so it takes the weights' value.
+
+        Parameters
+        ----------
+        manifest : Mapping
+            A weights manifest; its ``params`` maps parameter names to values.
+        folder : str or Path
+            Where the weights are, to name in messages.
+
+        Returns
+        -------
+        Params
+            A new instance; :attr:`params` itself is not changed.
+
+        Raises
+        ------
+        EngineError
+            The spec asked for another value of a trained parameter than the weights
+            have, or the weights record a parameter this engine lacks (they are from
+            another version of it).
+        """
         default, saved = self.Params(), dict(manifest.get("params") or {})
         roles = param_roles(default)
         unknown = sorted(set(saved) - set(roles))
@@ -328,8 +705,15 @@ class Engine:
 
     @property
     def variant(self) -> str:
-        """The name of this engine's weights: its name, then each trained parameter that
-        differs from its default (``ebf-bias``, ``ebf-lstm_units96``)."""
+        """The name of this engine's weights, e.g. ``ebf-bias``, ``ebf-lstm_units96``.
+
+        Returns
+        -------
+        str
+            Its name, then, joined by ``-``, each trained parameter that differs from its
+            default: the parameter's name where its value is True, else the name followed
+            by the value.
+        """
         default = self.Params()
         parts = [self.info.name]
         for name, value in _of_role(self.params, TRAINED).items():
@@ -338,16 +722,35 @@ class Engine:
         return "-".join(parts)
 
     def default_weights_dir(self) -> Path:
-        """``engines/<package>/weights/<variant>/``: where the committed weights of this
-        variant live, in the folder of the package that defines the engine class."""
+        """Where the committed weights of this variant live: ``engines/<package>/weights/<variant>/``.
+
+        Returns
+        -------
+        Path
+            ``weights/<variant>`` in the folder of the package (the module's folder) that
+            defines the engine class, absolute; it need not exist.
+        """
         import sys
 
         module = sys.modules[type(self).__module__]
         return Path(module.__file__).resolve().parent / "weights" / self.variant
 
     def load_pretrained(self) -> "Engine":
-        """Load the weights of ``weights_folder`` when set, else the committed weights
-        when this engine is trainable and has some."""
+        """Load the weights of ``weights_folder`` when set, else the committed weights, if any.
+
+        The committed weights (:meth:`default_weights_dir`) are loaded when this engine
+        is trainable and has some (a ``manifest.json`` there); otherwise nothing is.
+
+        Returns
+        -------
+        Engine
+            The engine itself.
+
+        Raises
+        ------
+        EngineError
+            As :meth:`load`.
+        """
         if self.weights_folder is not None:
             return self.load(self.weights_folder)
         if self.info.trainable and (self.default_weights_dir() / "manifest.json").exists():
@@ -358,8 +761,27 @@ class Engine:
 class Pipeline(Engine):
     """``a>b``: stage a fills gaps, then b cleans the filled motion as fully observed.
 
+    Each stage after the first cleans the motion of the one before as fully observed.
     Diagnostics of the last stage keep their names; earlier ones are prefixed with their
     stage's name and a dot.
+
+    Parameters
+    ----------
+    stages : Sequence[Engine]
+        Two or more engines, in the order they run.
+
+    Attributes
+    ----------
+    stages : list of Engine
+        The stages.
+    info : EngineInfo
+        Named by the stages' specs joined by ``>``; their tasks together, the last
+        stage's space, trainable if any stage is.
+
+    Raises
+    ------
+    EngineError
+        Fewer than two stages.
     """
 
     def __init__(self, stages: Sequence[Engine]) -> None:
@@ -378,14 +800,55 @@ class Pipeline(Engine):
 
     @property
     def spec(self) -> str:
+        """The stages' specs joined by ``>``, e.g. ``lerp>gaussian:sigma_ms=58``.
+
+        Returns
+        -------
+        str
+        """
         return ">".join(s.spec for s in self.stages)
 
     def fit(self, motions: Sequence[Motion], /) -> "Pipeline":
+        """Fit every stage on the same clean motions.
+
+        Parameters
+        ----------
+        motions : Sequence[Motion]
+            Clean takes (positional only).
+
+        Returns
+        -------
+        Pipeline
+            The pipeline itself.
+
+        Raises
+        ------
+        EngineError
+            As the stages' ``fit``.
+        """
         for s in self.stages:
             s.fit(motions)
         return self
 
     def clean(self, observation: Observation, /) -> CleanResult:
+        """Run the stages in turn, each on the motion of the one before as fully observed.
+
+        Parameters
+        ----------
+        observation : Observation
+            The take the first stage cleans (positional only).
+
+        Returns
+        -------
+        CleanResult
+            The last stage's motion; the diagnostics of every stage, those of the earlier
+            ones named ``<stage name>.<name>``.
+
+        Raises
+        ------
+        EngineError
+            As the stages' ``clean`` (:class:`NotFittedError` included).
+        """
         diagnostics: dict[str, np.ndarray] = {}
         result = None
         for i, stage in enumerate(self.stages):

@@ -42,6 +42,27 @@ from ..core.channels import interpolate_gaps
 from ..core.kinematics import short_lever_joints
 from ..core.motion import angle_joints, angle_slice, joint_angle_columns
 
+__all__ = [
+    "R_FLOOR",
+    "LAMBDA_GRID",
+    "cv_smooth",
+    "second_difference_band",
+    "measurement_variance",
+    "smoothing_ratio",
+    "estimate_noise",
+    "smooth_and_fill",
+    "smooth_observed",
+    "smooth_joint_angles",
+    "OUTLIER_VARIANCE_RATIO",
+    "angle_noise",
+    "angle_and_position_noise",
+    "angles_are_quieter",
+    "HOLE_NOISE_CM",
+    "angles_bridge_holes",
+    "angles_are_quiet",
+    "ik_reference",
+]
+
 #: smallest measurement variance (channel units squared): data are trusted to ~1e-5
 R_FLOOR = 1e-10
 #: candidate smoothing ratios lambda = r / q for the risk minimisation (log grid, x1.78)
@@ -50,10 +71,30 @@ _MAD_TO_STD = 1.482602218505602
 
 
 def cv_smooth(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """RTS-smoothed positions (F, D) of the constant-velocity model above, channel by
-    channel. ``Y`` (F, D) measurements (anything where missing), ``observed`` (F, D),
-    ``q`` and ``r`` (D,) process and measurement variances. A channel with fewer than
-    two observations is returned constant (its observed value, or 0)."""
+    """RTS-smoothed positions of the constant-velocity model above, channel by channel.
+
+    Solved exactly: by DCT for the channels observed at every frame (F >= 4), by one
+    banded Cholesky solve for the others. A channel with fewer than two observations is
+    returned constant (its observed value, or 0).
+
+    Parameters
+    ----------
+    Y : ndarray, shape (F, D)
+        Measurements, in the channels' units (degrees, file units); anything where
+        missing.
+    observed : ndarray of bool, shape (F, D)
+        True where ``Y`` is observed.
+    q : ndarray, shape (D,), or float
+        Process variances (of the second difference per frame), in channel units^2
+        (deg^2, file units^2); > 0.
+    r : ndarray, shape (D,), or float
+        Measurement variances, in channel units^2; > 0.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        The smoothed positions ``x_t``; across gaps, the model's path.
+    """
     Y = np.asarray(Y, float)
     F, D = Y.shape
     observed = np.asarray(observed, bool)
@@ -113,10 +154,23 @@ def _smooth_complete(Y: np.ndarray, lam: np.ndarray) -> np.ndarray:
 
 
 def second_difference_band(F: int) -> np.ndarray:
-    """D2'D2 (F, F), D2 the second-difference operator, as the lower band (3, F) of
-    ``scipy.linalg.solveh_banded``. Its last entries of the sub-diagonals are 0, so
-    the bands of several channels laid end to end (``(3, D, F)`` reshaped to
-    ``(3, D F)``) form one banded system whose channels do not couple."""
+    """``D2'D2`` (F, F), D2 the second-difference operator, as a lower band of ``solveh_banded``.
+
+    Its last entries of the sub-diagonals are 0, so the bands of several channels laid
+    end to end (``(3, D, F)`` reshaped to ``(3, D F)``) form one banded system whose
+    channels do not couple.
+
+    Parameters
+    ----------
+    F : int
+        The number of frames.
+
+    Returns
+    -------
+    ndarray, shape (3, F)
+        The lower band of ``scipy.linalg.solveh_banded`` (``band[i - j, j] = A[i, j]``):
+        the diagonal, then the first and second sub-diagonals. All 0 for F < 3.
+    """
     band = np.zeros((3, F))
     if F >= 3:
         band[0, :-2] += 1.0
@@ -140,15 +194,30 @@ def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.nda
 
 
 def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = True) -> np.ndarray:
-    """Per-channel white-noise variance (D,) from the second differences over fully
-    observed triples: for white noise of variance r the second difference has variance
-    6 r, and a smooth 120 fps signal contributes little to it. ``robust``: from their
-    median absolute value, robust to outliers and to the signal's occasional sharp
-    accelerations, and exact for Gaussian noise, but low for noise with heavier tails
-    (joint positions under angle noise: half the true variance on some rows);
-    otherwise from their mean square, right for any noise, but it counts the signal's
-    accelerations and every outlier. Channels with no observed triple get
-    :data:`R_FLOOR`."""
+    """Per-channel white-noise variance from the second differences over fully observed triples.
+
+    For white noise of variance r the second difference has variance 6 r, and a smooth
+    120 fps signal contributes little to it.
+
+    Parameters
+    ----------
+    Y : ndarray, shape (F, D)
+        Channels, in their units (degrees, file units); anything where missing.
+    observed : ndarray of bool, shape (F, D)
+        True where ``Y`` is observed.
+    robust : bool
+        True: from the second differences' median absolute value, robust to outliers and
+        to the signal's occasional sharp accelerations, and exact for Gaussian noise, but
+        low for noise with heavier tails (joint positions under angle noise: half the
+        true variance on some rows). False: from their mean square, right for any noise,
+        but it counts the signal's accelerations and every outlier.
+
+    Returns
+    -------
+    ndarray, shape (D,)
+        Variances in channel units^2 (deg^2, file units^2), at least :data:`R_FLOOR`.
+        Channels with no observed triple (all of them when F < 3) get :data:`R_FLOOR`.
+    """
     Y = np.asarray(Y, float)
     F, D = Y.shape
     if F < 3:
@@ -171,15 +240,29 @@ def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = Tru
 
 
 def smoothing_ratio(Y: np.ndarray, r: np.ndarray, observed_fraction: np.ndarray | float = 1.0) -> np.ndarray:
-    """Per-channel ``lambda = r / q`` (D,) minimising Stein's unbiased estimate of the
-    smoother's mean squared error, in the frequency domain.
+    """Per-channel ``lambda = r / q`` minimising Stein's unbiased estimate of the smoother's risk.
 
+    The estimate is of the smoother's mean squared error, in the frequency domain.
     Away from the ends the smoother is the linear filter ``H(w) = 1 / (1 + lambda (2 - 2
     cos w)^2)``; with the periodogram ``P(w)`` of the channel (gap-free, e.g. bridged,
     after removing the line through its first and last samples so that its periodic
     extension has no jump), SURE(lambda) = mean_w (1 - H)^2 P + 2 r_eff mean_w H - r_eff,
     with ``r_eff = r * observed_fraction`` (bridged samples carry no noise). The minimiser
     over :data:`LAMBDA_GRID` is taken per channel.
+
+    Parameters
+    ----------
+    Y : ndarray, shape (N, D)
+        Gap-free channels (e.g. bridged), in their units (degrees, file units).
+    r : ndarray, shape (D,)
+        Measurement variances, in channel units^2 (:func:`measurement_variance`).
+    observed_fraction : ndarray, shape (D,), or float
+        The fraction of each channel's samples that are observed, in [0, 1].
+
+    Returns
+    -------
+    ndarray, shape (D,)
+        Values of :data:`LAMBDA_GRID`; its smallest for every channel when N < 4.
     """
     Y = np.asarray(Y, float)
     N, D = Y.shape
@@ -206,10 +289,25 @@ def smoothing_ratio(Y: np.ndarray, r: np.ndarray, observed_fraction: np.ndarray 
 
 
 def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Process and measurement variances ``(q, r)`` (D,) of every channel of a bridged
-    channel matrix ``Y`` (F, D) (gaps interpolated) with its ``observed`` mask:
+    """Process and measurement variances ``(q, r)`` of every channel of a bridged channel matrix.
+
     ``r`` from :func:`measurement_variance`, ``q = r / lambda`` with ``lambda`` from
-    :func:`smoothing_ratio`."""
+    :func:`smoothing_ratio`.
+
+    Parameters
+    ----------
+    Y : ndarray, shape (F, D)
+        A channel matrix with its gaps interpolated, in its units (degrees, file units).
+    observed : ndarray of bool, shape (F, D)
+        True where ``Y`` is observed.
+
+    Returns
+    -------
+    q : ndarray, shape (D,)
+        Process variances for :func:`cv_smooth`, in channel units^2 (deg^2, file units^2).
+    r : ndarray, shape (D,)
+        Measurement variances, in channel units^2.
+    """
     observed = np.asarray(observed, bool)
     r = measurement_variance(Y, observed)
     lam = smoothing_ratio(Y, r, observed.mean(axis=0))
@@ -217,26 +315,74 @@ def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """(F, D) channels ``Y`` (anything where missing) smoothed by :func:`cv_smooth` at the
-    noise variances :func:`estimate_noise` finds in their ``observed`` samples (F, D), the
-    gaps filled by the smoother (the constant-velocity model's path across them)."""
+    """Channels smoothed by :func:`cv_smooth` at the noise they show, gaps filled by the smoother.
+
+    The noise variances are those :func:`estimate_noise` finds in the ``observed``
+    samples (with the gaps bridged linearly for it); the gaps are filled with the
+    constant-velocity model's path across them.
+
+    Parameters
+    ----------
+    Y : ndarray, shape (F, D)
+        Channels, in their units (degrees, file units); anything where missing.
+    observed : ndarray of bool, shape (F, D)
+        True where ``Y`` is observed.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        A new array; 0 in a column with no observation.
+    """
     bridged = interpolate_gaps(Y, observed)
     return cv_smooth(bridged, observed, *estimate_noise(bridged, observed))
 
 
 def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
-    """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed
-    ends)."""
+    """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed ends).
+
+    Parameters
+    ----------
+    Y : ndarray, shape (F, D)
+        Channels, in their units (degrees, file units); anything where missing.
+    observed : ndarray of bool, shape (F, D)
+        True where ``Y`` is observed.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        The smoothed channels at the observed samples; in a gap the line between the
+        smoothed samples around it, the nearest one held before a column's first and
+        after its last observation.
+    """
     return interpolate_gaps(smooth_and_fill(Y, observed), observed)
 
 
 def smooth_joint_angles(
     channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, smoothed: np.ndarray | None = None
 ) -> np.ndarray:
-    """A copy of the channel matrix ``channels`` (F, 3 + 3J, gaps bridged) with the angles
-    of ``joints`` smoothed by :func:`smooth_observed` where the joints are ``observed``
-    (F, J) and bridged linearly across their holes. ``smoothed``: the channels'
-    :func:`smooth_and_fill` (F, 3 + 3J), when the caller has it."""
+    """A copy of a channel matrix with the angles of ``joints`` smoothed where they are observed.
+
+    The angles are smoothed by :func:`smooth_observed` where the joints are
+    ``observed`` and bridged linearly across their holes; the other columns are copied.
+
+    Parameters
+    ----------
+    channels : ndarray, shape (F, D)
+        A channel matrix, gaps bridged: degrees and file units, the layout of
+        :attr:`workbench.core.motion.Motion.channels` (D = 3 + 3J without translated
+        joints).
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    joints : ndarray of int, shape (n,)
+        The joints whose angles to smooth.
+    smoothed : ndarray, shape (F, D), optional
+        The channels' :func:`smooth_and_fill`, when the caller has it.
+
+    Returns
+    -------
+    ndarray, shape (F, D)
+        A new array.
+    """
     out = np.array(channels, float)
     cols = joint_angle_columns(joints)
     mask = np.repeat(np.asarray(observed, bool)[:, joints], 3, axis=1)
@@ -255,11 +401,36 @@ OUTLIER_VARIANCE_RATIO = 3.0
 def angle_noise(
     skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, robust: bool = True
 ) -> np.ndarray:
-    """The noise of the observed angles of ``joints`` (n,) (each aimed at one descendant)
-    as the descendant sees it, (n,) in file units^2: their variance in rad^2
-    (:func:`measurement_variance`; ``robust`` False: the mean square, which counts
-    outliers) times the lever^2. ``channels`` (F, 3 + 3J) degrees, gaps bridged;
-    ``observed`` (F, J)."""
+    """The noise of the observed angles of ``joints`` as the descendant each is aimed at sees it.
+
+    Their variance in rad^2 (:func:`measurement_variance`, the mean over a joint's three
+    angles) times the lever^2: the squared offset of the joint's first aimed descendant
+    (:attr:`workbench.core.skeleton.Skeleton.aimed_descendants`).
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        The take's skeleton.
+    channels : ndarray, shape (F, D)
+        The channel matrix (D = 3 + 3J without translated joints), gaps bridged; angles
+        in degrees.
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    joints : ndarray of int, shape (n,)
+        Joints each aimed at one descendant.
+    robust : bool
+        False: from the mean square, which counts outliers (:func:`measurement_variance`).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Variances in file units^2.
+
+    Raises
+    ------
+    IndexError
+        A joint aimed at no descendant.
+    """
     children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
     seen = np.repeat(observed[:, joints], 3, axis=1)  # (F, 3n)
     lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[children] ** 2, axis=1)
@@ -270,12 +441,32 @@ def angle_noise(
 def angle_and_position_noise(
     skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The noise of ``joints`` (n,) (each aimed at one descendant) as their descendant sees
-    it, each (n,) in file units^2: through the observed angles (:func:`angle_noise`),
-    the same from the mean square (it counts outliers), and in the descendant's observed
-    position seen from the joint. ``channels`` (F, 3 + 3J) degrees, gaps bridged;
-    ``observed`` (F, J); ``positions`` (F, J, 3) by FK of the channels, file units, less
-    any common offset."""
+    """The noise of ``joints`` as their descendants see it, through the angles and the positions.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        The take's skeleton.
+    channels : ndarray, shape (F, D)
+        The channel matrix (D = 3 + 3J without translated joints), gaps bridged; angles
+        in degrees.
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    positions : ndarray, shape (F, J, 3)
+        Joint positions by FK of the channels, in file units, less any common offset.
+    joints : ndarray of int, shape (n,)
+        Joints each aimed at one descendant.
+
+    Returns
+    -------
+    angle : ndarray, shape (n,)
+        Through the observed angles (:func:`angle_noise`), in file units^2.
+    heavy : ndarray, shape (n,)
+        The same from the mean square (it counts outliers), in file units^2.
+    position : ndarray, shape (n,)
+        In the descendant's observed position seen from the joint (where both are
+        observed; :func:`measurement_variance`, the mean over x, y, z), in file units^2.
+    """
     children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
     n = len(joints)
     relative = (positions[:, children] - positions[:, joints]).reshape(len(positions), 3 * n)
@@ -290,14 +481,33 @@ def angle_and_position_noise(
 def angles_are_quieter(
     skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints
 ) -> np.ndarray:
-    """Which of ``joints`` (n,) (each aimed at one descendant) are better told by their
-    observed angles than by the observed positions, (n,) bool: the angles' noise, as the
-    moved descendant sees it, is below the noise of the descendant's position seen from
-    the joint, and the angles carry no outliers (the smoother would pass them;
-    :data:`OUTLIER_VARIANCE_RATIO`). Noise in the angles (as inertial capture has)
-    favours the angles: the relative position carries the noise of every joint above;
-    noise on the positions (markers) does not. Arguments and measures:
-    :func:`angle_and_position_noise`."""
+    """Which of ``joints`` are better told by their observed angles than by the observed positions.
+
+    Those whose angles' noise, as the moved descendant sees it, is below the noise of the
+    descendant's position seen from the joint, and whose angles carry no outliers (the
+    smoother would pass them; :data:`OUTLIER_VARIANCE_RATIO`). Noise in the angles (as
+    inertial capture has) favours the angles: the relative position carries the noise of
+    every joint above; noise on the positions (markers) does not. The measures are
+    those of :func:`angle_and_position_noise`.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        The take's skeleton.
+    channels : ndarray, shape (F, D)
+        The channel matrix, gaps bridged; angles in degrees.
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    positions : ndarray, shape (F, J, 3)
+        Joint positions by FK of the channels, in file units, less any common offset.
+    joints : array_like of int, shape (n,)
+        Joints each aimed at one descendant.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+        True where the angles are quieter.
+    """
     joints = np.asarray(joints, int)
     if not joints.size:
         return np.zeros(0, bool)
@@ -329,14 +539,36 @@ def _measured_joints(skeleton, observed: np.ndarray, short_lever_cm: float) -> n
 def angles_bridge_holes(
     skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float
 ) -> bool:
-    """Whether the holes of a take are better bridged by the constant-velocity smoother of
-    their angles than filled from the joint positions around them: unless the angles
-    carry outliers (the smoother would pass them; :data:`OUTLIER_VARIANCE_RATIO`) or the
-    noise is in the positions (the descendants' position noise below the angles'), each
-    only where it exceeds :data:`HOLE_NOISE_CM`. So a clean take passes (its measures
-    are the motion's own accelerations, 0.02-0.07 cm), and so does angle noise, but not
-    position noise of more than 0.5 cm. Medians over :func:`_measured_joints` (measures
-    and arguments: :func:`angle_and_position_noise`)."""
+    """Whether a take's holes are better bridged by the smoother of their angles than from positions.
+
+    The holes are better bridged by the constant-velocity smoother of their angles than
+    filled from the joint positions around them unless the angles carry outliers (the
+    smoother would pass them; :data:`OUTLIER_VARIANCE_RATIO`) or the noise is in the
+    positions (the descendants' position noise below the angles'), each only where it
+    exceeds :data:`HOLE_NOISE_CM`. So a clean take passes (its measures are the motion's
+    own accelerations, 0.02-0.07 cm), and so does angle noise, but not position noise
+    of more than 0.5 cm. The measures are medians over :func:`_measured_joints` (the
+    joints aimed at one descendant beyond ``short_lever_cm`` and observed somewhere) of
+    those of :func:`angle_and_position_noise`.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        The take's skeleton.
+    channels : ndarray, shape (F, D)
+        The channel matrix, gaps bridged; angles in degrees.
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    positions : ndarray, shape (F, J, 3)
+        Joint positions by FK of the channels, in file units, less any common offset.
+    short_lever_cm : float
+        Joints whose aimed descendants all lie within this many cm are not measured.
+
+    Returns
+    -------
+    bool
+        False also when no joint can be measured.
+    """
     joints = _measured_joints(skeleton, observed, short_lever_cm)
     if not joints.size:
         return False
@@ -349,13 +581,33 @@ def angles_bridge_holes(
 
 
 def angles_are_quiet(skeleton, channels: np.ndarray, observed: np.ndarray, short_lever_cm: float = 5.0) -> bool:
-    """Whether a take's angles carry less noise than :data:`HOLE_NOISE_CM`, outliers
-    included (:func:`angle_noise` from the mean square), as a descendant sees it: the
-    median over :func:`_measured_joints` (``short_lever_cm``: CMU's hands and finger
-    bases left out). Test split: a clean take passes (0.02-0.08 cm, the motion's own
-    accelerations), and so do ``angular:0.1`` (0.09-0.26 cm) and ``spatial:0.2``
-    (0.36-0.42); ``spatial:0.3`` (0.54-0.63), most ``angular:0.5`` takes and outliers
-    do not. ``channels`` (F, 3 + 3J) degrees, gaps bridged; ``observed`` (F, J)."""
+    """Whether a take's angles carry less noise than :data:`HOLE_NOISE_CM`, outliers included.
+
+    The noise is :func:`angle_noise` from the mean square, as a descendant sees it: the
+    median over :func:`_measured_joints` (the joints aimed at one descendant beyond
+    ``short_lever_cm`` and observed somewhere). Test split: a clean take passes
+    (0.02-0.08 cm, the motion's own accelerations), and so do ``angular:0.1``
+    (0.09-0.26 cm) and ``spatial:0.2`` (0.36-0.42); ``spatial:0.3`` (0.54-0.63), most
+    ``angular:0.5`` takes and outliers do not.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        The take's skeleton.
+    channels : ndarray, shape (F, D)
+        The channel matrix (D = 3 + 3J without translated joints), gaps bridged; angles
+        in degrees.
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    short_lever_cm : float
+        Joints whose aimed descendants all lie within this many cm are not measured
+        (the default, 5 cm, leaves out CMU's hands and finger bases).
+
+    Returns
+    -------
+    bool
+        False also when no joint can be measured.
+    """
     joints = _measured_joints(skeleton, observed, short_lever_cm)
     if not joints.size:
         return False
@@ -372,19 +624,48 @@ def ik_reference(
     angle_lever_cm: float,
     smoothed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """What IK (:func:`workbench.core.kinematics.inverse_kinematics`) keeps of an
-    observation when an engine has cleaned its joint positions: the reference angles
-    (F, J, 3) degrees, every joint's observed angles smoothed by
-    :func:`smooth_joint_angles` (the twist about single-child bones and the leaves come
-    from them); the joints whose children all lie within ``short_lever_cm`` and are
-    observed somewhere, kept at the reference in every frame (a few mm of position error
-    turn a 3-cm lever by tens of degrees); and the frames (F, J) in which the joints
-    aimed at one descendant within ``angle_lever_cm`` keep it: where they are observed,
-    in takes where their angles are quieter than the positions (:func:`angles_are_quieter`).
-    ``channels`` (F, 3 + 3J) with gaps bridged, ``observed`` (F, J), ``positions``
-    (F, J, 3) by FK of the channels (only differences between joints are used, so any
-    common offset, e.g. the root's, may be taken off); ``smoothed``: the channels'
-    :func:`smooth_and_fill`, when the caller has it."""
+    """What IK keeps of an observation when an engine has cleaned its joint positions.
+
+    For :func:`workbench.core.kinematics.inverse_kinematics`: the reference angles, the
+    joints it keeps at the reference in every frame, and the frames in which some more
+    joints keep it.
+
+    Parameters
+    ----------
+    skeleton : Skeleton
+        The take's skeleton.
+    channels : ndarray, shape (F, D)
+        The observation's channel matrix (D = 3 + 3J without translated joints) with
+        gaps bridged: degrees and file units.
+    observed : ndarray of bool, shape (F, J)
+        The joints' observed mask.
+    positions : ndarray, shape (F, J, 3)
+        Joint positions by FK of the channels, in file units. Only differences between
+        joints are used, so any common offset, e.g. the root's, may be taken off.
+    short_lever_cm : float
+        The joints whose aimed descendants all lie within this many cm and that are
+        observed somewhere are kept at the reference in every frame (a few mm of
+        position error turn a 3-cm lever by tens of degrees).
+    angle_lever_cm : float
+        The other joints aimed at one descendant within this many cm keep the reference
+        where they are observed, in takes where their angles are quieter than the
+        positions (:func:`angles_are_quieter`).
+    smoothed : ndarray, shape (F, D), optional
+        The channels' :func:`smooth_and_fill`, when the caller has it.
+
+    Returns
+    -------
+    reference : ndarray, shape (F, J, 3)
+        The reference angles, in degrees: the observed angles of every joint of
+        :func:`workbench.core.motion.angle_joints` (all with a rotation but the root
+        chain) smoothed by :func:`smooth_joint_angles`, the others' as in ``channels``.
+        The twist about single-child bones and the leaves come from them.
+    short : ndarray of int, shape (k,)
+        The joints kept at the reference in every frame (``short_lever_cm``).
+    frames : ndarray of bool, shape (F, J)
+        The frames in which each joint keeps the reference (``angle_lever_cm``); False
+        throughout for the other joints.
+    """
     short = short_lever_joints(skeleton, short_lever_cm, observed)
     reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed)
     reference = reference[:, angle_slice(skeleton)].reshape(positions.shape)

@@ -17,6 +17,8 @@ from typing import Callable, TypeVar
 
 from threadpoolctl import ThreadpoolController
 
+__all__ = ["one_blas_thread"]
+
 Method = TypeVar("Method", bound=Callable)
 
 
@@ -27,8 +29,22 @@ def _controller() -> ThreadpoolController:
 
 
 def one_blas_thread(method: Method) -> Method:
-    """Decorator: run ``method`` with numpy's BLAS limited to one thread, restored after
-    (about 13 us a call)."""
+    """Decorator: run ``method`` with numpy's BLAS limited to one thread, restored after.
+
+    The limit costs about 13 us a call; the process's thread pools are found once, when
+    first needed (a few ms).
+
+    Parameters
+    ----------
+    method : callable
+        A function or method, e.g. an engine's ``clean``.
+
+    Returns
+    -------
+    callable
+        A wrapper with the same signature, name and docstring
+        (``functools.wraps``) that returns what ``method`` returns.
+    """
 
     @functools.wraps(method)
     def limited(*args, **kwargs):

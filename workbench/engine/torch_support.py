@@ -20,13 +20,31 @@ import torch
 
 from .base import EngineError
 
-#: serialise heavy torch runs across processes on this 2-core machine (see PERFORMANCE.md:
-#: two 2-thread torch processes at once are each ~20x slower)
-TRAIN_LOCK = "/tmp/mocap-workbench-torch.lock"
+__all__ = [
+    "seed_everything",
+    "reproducible_training",
+    "torch_threads",
+    "bf16_is_native",
+    "default_threads",
+    "module_arrays",
+    "load_module_arrays",
+    "progress",
+]
 
 
 def seed_everything(seed: int) -> torch.Generator:
-    """Seed python, numpy and torch; returns a torch Generator seeded the same way."""
+    """Seed python, numpy and torch; return a torch Generator seeded the same way.
+
+    Parameters
+    ----------
+    seed : int
+        The seed (numpy's is ``seed % 2**32``).
+
+    Returns
+    -------
+    torch.Generator
+        A new generator seeded with ``seed``.
+    """
     random.seed(seed)
     np.random.seed(seed % 2**32)
     torch.manual_seed(seed)
@@ -35,15 +53,27 @@ def seed_everything(seed: int) -> torch.Generator:
 
 @contextmanager
 def reproducible_training(seed: int) -> Iterator[None]:
-    """Run a training block seeded with ``seed`` (:func:`seed_everything`), on
-    :func:`default_threads` torch threads and with torch's deterministic algorithms;
-    both are restored after. Without them two-thread training is not repeatable:
+    """Run a training block seeded, on :func:`default_threads` torch threads, deterministically.
+
+    The block is seeded with ``seed`` (:func:`seed_everything`) and runs on
+    :func:`default_threads` torch threads with torch's deterministic algorithms; both
+    are restored after (the seeded random states are not). Without them two-thread training is not repeatable:
     four one-epoch runs of ``workbench train ebf`` gave three different sets of weights
     (after 20 epochs, test ``angular:0.5`` 1.74 and 1.77 degrees, where seeds 0 and 1
     give 1.66 and 1.76 deterministically). With them two threads give bit for bit what
     one thread gives, about as fast. Holden's unpooling has no deterministic flag, but
     it puts each value in a place of its own (2-frame pooling), so it is deterministic
-    anyway: warn only, and hush that warning."""
+    anyway: warn only, and hush that warning.
+
+    Parameters
+    ----------
+    seed : int
+        The seed of python's, numpy's and torch's random generators.
+
+    Yields
+    ------
+    None
+    """
     before = torch.are_deterministic_algorithms_enabled(), torch.is_deterministic_algorithms_warn_only_enabled()
     seed_everything(seed)
     torch.use_deterministic_algorithms(True, warn_only=True)
@@ -57,10 +87,21 @@ def reproducible_training(seed: int) -> Iterator[None]:
 
 @contextmanager
 def torch_threads(n: int) -> Iterator[None]:
-    """Run the block on ``n`` torch threads, then restore the count. A streamed EBF frame
-    is faster on one thread here (0.84 vs 1.16 ms: the 2-core machine spends more on
-    synchronising two than it gains); a batch of motion images is faster on both
-    (``cae``, four 256-frame views: 12.5 vs 6.9 ms)."""
+    """Run the block on ``n`` torch threads, then restore the count.
+
+    A streamed EBF frame is faster on one thread here (0.84 vs 1.16 ms: the 2-core
+    machine spends more on synchronising two than it gains); a batch of motion images is
+    faster on both (``cae``, four 256-frame views: 12.5 vs 6.9 ms).
+
+    Parameters
+    ----------
+    n : int
+        The number of torch threads (``torch.set_num_threads``), >= 1.
+
+    Yields
+    ------
+    None
+    """
     before = torch.get_num_threads()
     torch.set_num_threads(n)
     try:
@@ -70,12 +111,19 @@ def torch_threads(n: int) -> Iterator[None]:
 
 
 def bf16_is_native() -> bool:
-    """True when oneDNN runs bfloat16 on this CPU's own instructions (AVX-512 BW/VL/DQ,
-    with AMX or AVX512-BF16 at their best, or ARM's BF16). Elsewhere it emulates them, far
-    slower than float32: on an AVX2-only AMD EPYC a 16-channel 3x3 convolution took 20x
+    """Whether oneDNN runs bfloat16 on this CPU's own instructions.
+
+    Native means AVX-512 BW/VL/DQ, with AMX or AVX512-BF16 at their best, or ARM's BF16.
+    Elsewhere it emulates them, far slower than float32: on an AVX2-only AMD EPYC a 16-channel 3x3 convolution took 20x
     the float32 time (130x without channels_last), ``cae`` cleaned 0.6k frames/s
     instead of 3.5-4.5k, and training took 9x as long (54 s against 5.9 s for 32k
-    frames; all of ``workbench train cae`` in float32: 29 minutes)."""
+    frames; all of ``workbench train cae`` in float32: 29 minutes).
+
+    Returns
+    -------
+    bool
+        True when native; False when emulated, or in a torch build without oneDNN.
+    """
     try:
         return bool(torch.ops.mkldnn._is_mkldnn_bf16_supported())
     except (AttributeError, RuntimeError):  # a torch build without oneDNN
@@ -83,18 +131,60 @@ def bf16_is_native() -> bool:
 
 
 def default_threads() -> int:
-    """OMP_NUM_THREADS if set, else all cores, at most 2."""
+    """The number of torch threads to run on: OMP_NUM_THREADS if set, else all cores, at most 2.
+
+    Returns
+    -------
+    int
+        At least 1. OMP_NUM_THREADS, when set and not empty, is taken as it is (not
+        capped at 2).
+
+    Raises
+    ------
+    ValueError
+        OMP_NUM_THREADS is not a whole number.
+    """
     return max(1, int(os.environ.get("OMP_NUM_THREADS") or min(2, os.cpu_count() or 1)))
 
 
 def module_arrays(module: torch.nn.Module, prefix: str = "") -> dict[str, np.ndarray]:
-    """The module's parameters and buffers as float32 numpy arrays, keyed ``prefix + name``."""
+    """The module's parameters and buffers as float32 numpy arrays, keyed ``prefix + name``.
+
+    Parameters
+    ----------
+    module : torch.nn.Module
+        The network.
+    prefix : str
+        Put before each ``state_dict`` name, to keep the module's arrays apart from
+        others saved beside them (e.g. ``"net."``).
+
+    Returns
+    -------
+    dict of str to ndarray
+        New float32 arrays, on the CPU, of the ``state_dict``'s shapes (integer buffers
+        too; :func:`load_module_arrays` casts them back).
+    """
     return {prefix + k: v.detach().cpu().float().numpy() for k, v in module.state_dict().items()}
 
 
 def load_module_arrays(module: torch.nn.Module, arrays: Mapping[str, np.ndarray], prefix: str = "") -> None:
-    """Load arrays saved by :func:`module_arrays` into ``module``; a clear EngineError if
-    the names or shapes do not match the network built from the manifest's parameters."""
+    """Load arrays saved by :func:`module_arrays` into ``module``.
+
+    Parameters
+    ----------
+    module : torch.nn.Module
+        The network built from the manifest's parameters; its state is replaced.
+    arrays : Mapping[str, ndarray]
+        The saved arrays. Those whose names start with ``prefix`` must be exactly the
+        module's (with the empty prefix: every array).
+    prefix : str
+        As given to :func:`module_arrays`.
+
+    Raises
+    ------
+    EngineError
+        A clear message when the names or shapes do not match the network.
+    """
     state = module.state_dict()
     wanted = {prefix + k for k in state}
     have = {k for k in arrays if k.startswith(prefix)}
@@ -114,7 +204,23 @@ def load_module_arrays(module: torch.nn.Module, arrays: Mapping[str, np.ndarray]
 
 
 def progress(iterable: Iterable, desc: str, total: int | None = None):
-    """A tqdm progress bar on stderr (quiet when not a terminal and in CI)."""
+    """A tqdm progress bar on stderr (none in CI).
+
+    Parameters
+    ----------
+    iterable : Iterable
+        What the bar iterates over.
+    desc : str
+        The bar's label.
+    total : int, optional
+        The number of items, when ``len(iterable)`` does not say it.
+
+    Returns
+    -------
+    tqdm.tqdm
+        An iterable over ``iterable``, updating at most once a second; disabled when the
+        environment variable ``CI`` is ``true``.
+    """
     from tqdm import tqdm
 
     return tqdm(

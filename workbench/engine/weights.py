@@ -20,6 +20,16 @@ import numpy as np
 from ..io.atomic import atomic_path, atomic_write_text
 from .base import EngineError
 
+__all__ = [
+    "WEIGHTS_FILE",
+    "MANIFEST_FILE",
+    "FORMAT_VERSION",
+    "sha256_file",
+    "code_commit",
+    "save_weights",
+    "load_weights",
+]
+
 WEIGHTS_FILE = "weights.npz"
 MANIFEST_FILE = "manifest.json"
 #: the manifest's layout: 2 records the variant, each parameter under its current name
@@ -29,6 +39,23 @@ FORMAT_VERSION = 2
 
 
 def sha256_file(path: Path) -> str:
+    """The SHA-256 digest of a file's bytes, read in blocks of 1 MiB.
+
+    Parameters
+    ----------
+    path : Path or str
+        The file.
+
+    Returns
+    -------
+    str
+        The digest as 64 lowercase hexadecimal digits.
+
+    Raises
+    ------
+    OSError
+        The file cannot be read.
+    """
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -37,8 +64,14 @@ def sha256_file(path: Path) -> str:
 
 
 def code_commit() -> str | None:
-    """The git commit of this checkout, with "+dirty" when tracked files differ from it,
-    so a manifest says which code trained its weights; None outside a git checkout."""
+    """The git commit of this checkout, so a manifest says which code trained its weights.
+
+    Returns
+    -------
+    str or None
+        The commit's full hash, with "+dirty" when tracked files differ from it; None
+        outside a git checkout (or without git, or when git takes over 10 s).
+    """
     root = Path(__file__).resolve().parents[2]
 
     def git(*args: str) -> str:
@@ -55,7 +88,38 @@ def code_commit() -> str | None:
 
 
 def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> Path:
-    """Write arrays and manifest atomically into ``folder``; returns the manifest path."""
+    """Write arrays and manifest atomically into ``folder``.
+
+    Each file is written atomically (:func:`workbench.io.atomic.atomic_path`), and the
+    weights replace the old ones only once their manifest is ready: ``weights.npz`` by
+    ``np.savez`` (plain arrays, never pickled), then ``manifest.json`` with ``manifest``
+    and the entries this function adds, which
+    override any of the same name: ``format_version`` (:data:`FORMAT_VERSION`),
+    ``file``, ``sha256`` (of the weights file), ``code_version``, ``code_commit``
+    (:func:`code_commit`) and ``saved_utc``.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Created if missing; its ``weights.npz`` and ``manifest.json`` are replaced.
+    arrays : Mapping[str, ndarray]
+        Named numeric arrays (object arrays could only be read back by unpickling, which
+        :func:`load_weights` refuses).
+    manifest : Mapping
+        JSON values: whatever the engine needs to rebuild itself.
+
+    Returns
+    -------
+    Path
+        The manifest's path, ``folder / "manifest.json"``.
+
+    Raises
+    ------
+    TypeError
+        A manifest value that is not JSON serialisable.
+    OSError
+        The folder or its files cannot be written.
+    """
     from .. import __version__
 
     folder = Path(folder)
@@ -63,23 +127,45 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
     with atomic_path(folder / WEIGHTS_FILE) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, **{k: np.asarray(v) for k, v in arrays.items()})
-        digest = sha256_file(tmp)
-    full = {
-        **manifest,
-        "format_version": FORMAT_VERSION,
-        "file": WEIGHTS_FILE,
-        "sha256": digest,
-        "code_version": __version__,
-        "code_commit": code_commit(),
-        "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-    }
-    atomic_write_text(folder / MANIFEST_FILE, json.dumps(full, indent=2, sort_keys=True) + "\n")
+        full = {
+            **manifest,
+            "format_version": FORMAT_VERSION,
+            "file": WEIGHTS_FILE,
+            "sha256": sha256_file(tmp),
+            "code_version": __version__,
+            "code_commit": code_commit(),
+            "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        }
+        text = json.dumps(full, indent=2, sort_keys=True) + "\n"  # a value JSON cannot hold fails here, first
+    atomic_write_text(folder / MANIFEST_FILE, text)
     return folder / MANIFEST_FILE
 
 
 def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
-    """Read and verify weights saved by :func:`save_weights`. Raises EngineError with a
-    clear message for a missing, corrupt or tampered file."""
+    """Read and verify weights saved by :func:`save_weights`.
+
+    The weights file must match the checksum its manifest records, and is read without
+    unpickling anything.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder holding ``manifest.json`` and the weights file it names.
+
+    Returns
+    -------
+    arrays : dict of str to ndarray
+        The named arrays.
+    manifest : dict
+        The manifest as saved, with the entries :func:`save_weights` added.
+
+    Raises
+    ------
+    EngineError
+        With a clear message for a missing, corrupt or tampered file: no manifest, an
+        unreadable one, one of another :data:`FORMAT_VERSION`, a missing weights file,
+        a checksum that does not match, or unreadable weights.
+    """
     folder = Path(folder)
     manifest_path = folder / MANIFEST_FILE
     try:
@@ -88,6 +174,8 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
         raise EngineError(f"{manifest_path}: no weights manifest here; train the engine first") from None
     except (OSError, ValueError) as err:
         raise EngineError(f"{manifest_path}: unreadable weights manifest ({err})") from None
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("skeleton_signature"), str):
+        raise EngineError(f"{manifest_path}: not a weights manifest (an object with the skeleton it was trained for)")
     if manifest.get("format_version") != FORMAT_VERSION:
         raise EngineError(
             f"{manifest_path}: weights of manifest format {manifest.get('format_version', 1)}, and "
