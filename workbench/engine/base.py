@@ -37,26 +37,6 @@ import numpy as np
 from ..core.motion import Motion, Observation
 from ..core.skeleton import Skeleton
 
-__all__ = [
-    "Engine",
-    "EngineInfo",
-    "CleanResult",
-    "NoParams",
-    "EngineError",
-    "NotFittedError",
-    "Pipeline",
-    "TASKS",
-    "SPACES",
-    "WEIGHTS_OPTION",
-    "ROLE",
-    "TRAINED",
-    "TRAINING",
-    "INFERENCE",
-    "trained",
-    "training",
-    "param_roles",
-]
-
 TASKS = frozenset({"denoise", "fill"})
 #: the spec option of trainable engines that names a folder of trained weights
 WEIGHTS_OPTION = "weights"
@@ -87,21 +67,9 @@ def trained(default: typing.Any) -> typing.Any:
 
 
 def training(default: typing.Any) -> typing.Any:
-    """A parameter field used by ``fit`` only (``epochs: int = training(20)``).
-
-    Loading weights takes their value of it, so that the spec says how the loaded weights
-    were trained (:meth:`Engine.weights_params`).
-
-    Parameters
-    ----------
-    default : object
-        The field's default value.
-
-    Returns
-    -------
-    dataclasses.Field
-        A field whose metadata give it the role :data:`TRAINING` (under :data:`ROLE`).
-    """
+    """As :func:`trained`, for a parameter used by ``fit`` only (``epochs: int =
+    training(20)``), of role :data:`TRAINING`: loading weights takes their value, so that
+    the spec says how they were trained, and a spec asking for another is not refused."""
     return field(default=default, metadata={ROLE: TRAINING})
 
 
@@ -585,21 +553,14 @@ class Engine:
         Parameters
         ----------
         folder : str or Path
-            Created if missing; its ``weights.npz`` and ``manifest.json`` are replaced.
+            As in :func:`~workbench.engine.weights.save_weights`, which returns the path.
         extra_manifest : Mapping, optional
             More manifest entries, JSON values; they override entries of the same name.
-
-        Returns
-        -------
-        Path
-            The manifest's path, ``folder / "manifest.json"``.
 
         Raises
         ------
         NotFittedError
-            A trainable engine that is not fitted.
-        NotImplementedError
-            An engine with no fitted state.
+            A trainable engine that is not fitted (and what ``save_weights`` raises).
         """
         from .weights import save_weights
 

@@ -30,6 +30,13 @@ recursion) without a Python loop over frames:
   Woodbury correction and one inverse DCT;
 * channels with gaps: one banded Cholesky solve (LAPACK ``pbsv``) of all of them
   stacked one after another (uncoupled).
+
+
+The position engines' parameters, shared by the helpers below :func:`smooth_joint_angles`:
+``skeleton`` the take's skeleton; ``channels`` (F, D) its channel matrix, gaps bridged
+(degrees and file units); ``observed`` (F, J) the joints' observed mask; ``positions``
+(F, J, 3) joint positions by FK of the channels, in file units (only differences between
+joints are used, so any common offset, e.g. the root's, may be taken off).
 """
 
 from __future__ import annotations
@@ -342,10 +349,8 @@ def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    Y : ndarray, shape (F, D)
-        Channels, in their units (degrees, file units); anything where missing.
-    observed : ndarray of bool, shape (F, D)
-        True where ``Y`` is observed.
+    Y, observed
+        As in :func:`smooth_and_fill`.
 
     Returns
     -------
@@ -409,13 +414,8 @@ def angle_noise(
 
     Parameters
     ----------
-    skeleton : Skeleton
-        The take's skeleton.
-    channels : ndarray, shape (F, D)
-        The channel matrix (D = 3 + 3J without translated joints), gaps bridged; angles
-        in degrees.
-    observed : ndarray of bool, shape (F, J)
-        The joints' observed mask.
+    skeleton, channels, observed
+        The take: see *The position engines' parameters* in the module docstring.
     joints : ndarray of int, shape (n,)
         Joints each aimed at one descendant.
     robust : bool
@@ -445,15 +445,8 @@ def angle_and_position_noise(
 
     Parameters
     ----------
-    skeleton : Skeleton
-        The take's skeleton.
-    channels : ndarray, shape (F, D)
-        The channel matrix (D = 3 + 3J without translated joints), gaps bridged; angles
-        in degrees.
-    observed : ndarray of bool, shape (F, J)
-        The joints' observed mask.
-    positions : ndarray, shape (F, J, 3)
-        Joint positions by FK of the channels, in file units, less any common offset.
+    skeleton, channels, observed, positions
+        The take: see *The position engines' parameters* in the module docstring.
     joints : ndarray of int, shape (n,)
         Joints each aimed at one descendant.
 
@@ -492,14 +485,8 @@ def angles_are_quieter(
 
     Parameters
     ----------
-    skeleton : Skeleton
-        The take's skeleton.
-    channels : ndarray, shape (F, D)
-        The channel matrix, gaps bridged; angles in degrees.
-    observed : ndarray of bool, shape (F, J)
-        The joints' observed mask.
-    positions : ndarray, shape (F, J, 3)
-        Joint positions by FK of the channels, in file units, less any common offset.
+    skeleton, channels, observed, positions
+        The take: see *The position engines' parameters* in the module docstring.
     joints : array_like of int, shape (n,)
         Joints each aimed at one descendant.
 
@@ -553,14 +540,8 @@ def angles_bridge_holes(
 
     Parameters
     ----------
-    skeleton : Skeleton
-        The take's skeleton.
-    channels : ndarray, shape (F, D)
-        The channel matrix, gaps bridged; angles in degrees.
-    observed : ndarray of bool, shape (F, J)
-        The joints' observed mask.
-    positions : ndarray, shape (F, J, 3)
-        Joint positions by FK of the channels, in file units, less any common offset.
+    skeleton, channels, observed, positions
+        The take: see *The position engines' parameters* in the module docstring.
     short_lever_cm : float
         Joints whose aimed descendants all lie within this many cm are not measured.
 
@@ -592,13 +573,8 @@ def angles_are_quiet(skeleton, channels: np.ndarray, observed: np.ndarray, short
 
     Parameters
     ----------
-    skeleton : Skeleton
-        The take's skeleton.
-    channels : ndarray, shape (F, D)
-        The channel matrix (D = 3 + 3J without translated joints), gaps bridged; angles
-        in degrees.
-    observed : ndarray of bool, shape (F, J)
-        The joints' observed mask.
+    skeleton, channels, observed
+        The take: see *The position engines' parameters* in the module docstring.
     short_lever_cm : float
         Joints whose aimed descendants all lie within this many cm are not measured
         (the default, 5 cm, leaves out CMU's hands and finger bases).
@@ -632,15 +608,8 @@ def ik_reference(
 
     Parameters
     ----------
-    skeleton : Skeleton
-        The take's skeleton.
-    channels : ndarray, shape (F, D)
-        The observation's channel matrix (D = 3 + 3J without translated joints) with
-        gaps bridged: degrees and file units.
-    observed : ndarray of bool, shape (F, J)
-        The joints' observed mask.
-    positions : ndarray, shape (F, J, 3)
-        Joint positions by FK of the channels, in file units. Only differences between
+    skeleton, channels, observed, positions
+        The take: see *The position engines' parameters* in the module docstring.
         joints are used, so any common offset, e.g. the root's, may be taken off.
     short_lever_cm : float
         The joints whose aimed descendants all lie within this many cm and that are
