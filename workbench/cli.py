@@ -345,9 +345,10 @@ def cmd_train(args) -> int:
     train = select(clips, "train") or select(clips, None)
     if not train:
         raise UserError(f"no training clips under {root}" + (f" in dataset {dataset!r}" if dataset else ""))
-    engine.training_motions([train[0].load()])  # a skeleton it cannot train on, before loading every take
-    loaded = [(c, c.load()) for c in train]
-    layout = loaded[0][1].skeleton.signature()
+    first = train[0].load()
+    engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
+    loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
+    layout = first.skeleton.signature()
     used = [(c, m) for c, m in loaded if m.skeleton.signature() == layout]
     if len(used) < len(loaded):
         print(f"note: training on the {len(used)} clips of the first clip's skeleton only", file=sys.stderr)

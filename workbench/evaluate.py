@@ -254,7 +254,8 @@ def run_benchmark(
         summary = summarise_rows([r for r in result.rows if r["engine"] == spec])
         # memory in a clean of its own per dataset, so that its page faults stay out of the timings
         for name, ids in result.datasets().items():
-            accepted = [case for clip_id, case in cases if clip_id in set(ids) and clip_id not in refused]
+            mine = set(ids) - set(refused)
+            accepted = [case for clip_id, case in cases if clip_id in mine]
             if accepted:
                 longest = max(accepted, key=lambda c: c.truth.n_frames).observation
                 before = reset_peak_resident()

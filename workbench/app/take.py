@@ -228,7 +228,7 @@ def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[in
     """Child joints of the bones to box-plot: those ending at the selected joints, else
     the ``n`` longest bones of the rest pose (the root chain has none: a moving Hips
     under a reference root is carried, not a bone)."""
-    bones = [j for j in range(1, skeleton.n_joints) if j not in skeleton.root_chain]
+    bones = [j for j in range(skeleton.n_joints) if j not in skeleton.root_chain]
     chosen = [j for j in selected if j in bones][:n]
     if chosen:
         return chosen

@@ -172,7 +172,7 @@ class Skeleton:
         out = []
         for j in range(self.n_joints):
             aimed: list[tuple[int, tuple[int, ...]]] = []
-            stack = [(c, ()) for c in self.children[j] if c not in self.translated]
+            stack = [(c, ()) for c in self.children[j]]
             while stack:
                 c, via = stack.pop()
                 if c in self.translated:

@@ -266,14 +266,12 @@ def _motion_from_values(header: Skeleton, fps: float, values: np.ndarray, name: 
     reference root (even in a take where it stands still), a stretchy bone. The unit is
     guessed on the resulting rest pose."""
     F, J = values.shape[0], header.n_joints
-    root = np.zeros((F, 3))
     angles = np.zeros((F, J, 3))
-    local = np.zeros((F, J, 3))  # the position channels of every joint
+    local = np.zeros((F, J, 3))  # the position channels of every joint, 0 where it has none
     for col, (j, is_position, slot) in enumerate(_column_layout(header)):
         target = local if is_position else angles
         target[:, j, slot] = values[:, col]
-    if header.has_position[0]:
-        root = local[:, 0]
+    root = local[:, 0]
     rest = _same_translation(local, header.file_offsets[None]).all(axis=0)  # NaN (missing) is no rest
     moving = [j for j in np.flatnonzero(header.has_position[1:]) + 1 if not rest[j]]
     offsets = np.array(header.offsets)

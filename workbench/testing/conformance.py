@@ -244,23 +244,23 @@ def conformance_clips(root=None, frames: int = 150, dataset: str | None = None) 
     without translated joints; ``"cmu"`` with the team's data), and a take of each other
     dataset whose skeleton has another layout (with the team's data, a cmu-daz take and
     a Bandai take, whose Hips is translated)."""
+    from functools import cache
+
     from ..data import catalogue
 
+    load = cache(lambda clip: clip.load())  # each take read once
     clips = sorted(catalogue(root), key=lambda c: c.split != "train")
+    names = list(dict.fromkeys(c.dataset for c in clips))
     if dataset is None:  # the first dataset whose first clip has no translated joints
         dataset = next(
-            (
-                name
-                for name in dict.fromkeys(c.dataset for c in clips)
-                if not next(c for c in clips if c.dataset == name).load().skeleton.translated
-            ),
+            (n for n in names if not load(next(c for c in clips if c.dataset == n)).skeleton.translated),
             clips[0].dataset,
         )
     clips.sort(key=lambda c: c.dataset != dataset)  # stable: the training clips first within each
-    primary = clips[0].load().slice(0, frames)
+    primary = load(clips[0]).slice(0, frames)
     layouts, foreign = {primary.skeleton.signature()}, []
-    for name in dict.fromkeys(c.dataset for c in clips):  # a take long enough of each dataset
-        m = next((m for c in clips if c.dataset == name and (m := c.load()).n_frames >= frames), None)
+    for name in names:  # a take long enough of each dataset
+        m = next((m for c in clips if c.dataset == name and (m := load(c)).n_frames >= frames), None)
         if m is not None and m.skeleton.signature() not in layouts:
             layouts.add(m.skeleton.signature())
             foreign.append(m.slice(0, frames))
