@@ -163,14 +163,16 @@ def test_data_lists_a_dataset_with_its_styles_and_splits(capsys):
 def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_refusals(tmp_path, capsys):
     """Every dataset's test split, a table each; a take too short for the block (Bandai's
     135-frame walk_happy_002) is left out with a note, not the run; a trained engine
-    that refuses a skeleton is named."""
-    js = tmp_path / "b.json"
+    that refuses a skeleton (weights named for CMU's only) is named."""
+    from engines.kalman import LearnedKalman
+
+    js, cmu_only = tmp_path / "b.json", f"kalman-learned:weights={LearnedKalman().default_weights_dir() / 'cmu'}"
     assert (
         main(
             [
                 "bench",
                 "--engines",
-                "kalman,kalman-learned",
+                f"kalman,{cmu_only}",
                 "--corrupt",
                 "block:150",
                 "--clips",
@@ -189,10 +191,10 @@ def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_ref
         "(the block plus one observed frame on each side); this one has 135"
     }
     assert "bandai/walk/dataset-1_walk_happy_002" not in doc["clips"] and "could not be corrupted with block:150" in err
-    assert set(doc["refused"]["kalman-learned"]) == {c for c in doc["clips"] if c.startswith("bandai/")}
-    assert "kalman-learned did not clean" in err and "Clean it with a classical engine" in err
+    assert set(doc["refused"][cmu_only]) == {c for c in doc["clips"] if c.startswith("bandai/")}
+    assert f"{cmu_only} did not clean" in err and "has no weights for this skeleton" in err
     assert "mpjpe_cm" in doc["summary_by_dataset"]["bandai"]["kalman"]
-    assert "mpjpe_cm" not in doc["summary_by_dataset"]["bandai"]["kalman-learned"]
+    assert "mpjpe_cm" not in doc["summary_by_dataset"]["bandai"][cmu_only]
     assert (
         main(
             [

@@ -78,7 +78,7 @@ def test_params_from_spec_and_spec_round_trip():
 def test_a_trained_engine_loads_the_weights_folder_its_spec_names(walk, tmp_path):
     from engines.mssa import MSSA
 
-    committed = MSSA().default_weights_dir()
+    committed = MSSA().default_weights_dir() / "cmu"
     e = registry.create(f"mssa:prior_weight=2,weights={committed}")
     assert e.weights_folder == committed and e.skeleton_signature_ == walk.skeleton.signature()
     assert e.spec == f"mssa:prior_weight=2.0,weights={committed}"
@@ -95,11 +95,11 @@ def test_a_trained_engine_loads_the_weights_folder_its_spec_names(walk, tmp_path
 def test_weights_bring_their_architecture_unless_the_spec_asks_for_another():
     from engines.ebf import EBF
 
-    bias = EBF().default_weights_dir().parent / "ebf-bias"
+    bias = EBF().default_weights_dir().parent / "ebf-bias" / "cmu"
     assert registry.create(f"ebf:weights={bias}").params.bias is True  # taken from the weights
     with pytest.raises(EngineError, match=r"trained with \{'lstm_units': 64\}, not \{'lstm_units': 32\}"):
         registry.create(f"ebf:lstm_units=32,weights={bias}")
-    cae = registry.create("cae").default_weights_dir()
+    cae = registry.create("cae").default_weights_dir() / "cmu"
     with pytest.raises(EngineError, match=r"trained with \{'base_width': 16\}, not \{'base_width': 8\}"):
         registry.create(f"cae:base_width=8,weights={cae}")
     narrow = registry.create("cae:base_width=8")  # another variant: its own weights, none committed

@@ -376,7 +376,7 @@ def cmd_train(args) -> int:
     if args.promote:
         import shutil
 
-        dest = engine.default_weights_dir()
+        dest = engine.default_weights_dir() / used[0][0].dataset
         dest.mkdir(parents=True, exist_ok=True)
         for f in out.iterdir():
             shutil.copy2(f, dest / f.name)
@@ -501,7 +501,11 @@ def build_parser() -> argparse.ArgumentParser:
         "root has the splits of several)",
     )
     sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias)")
-    sp.add_argument("--promote", action="store_true", help="also copy the result into engines/<name>/weights/")
+    sp.add_argument(
+        "--promote",
+        action="store_true",
+        help="also copy the result into the committed weights, engines/<package>/weights/<variant>/<dataset>/",
+    )
     sp.set_defaults(func=cmd_train)
 
     from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION, DEFAULT_ENGINES

@@ -170,6 +170,11 @@ class ConvAutoencoderEngine(Engine):
     :meth:`build_network`."""
 
     Params = TrainingParams
+    #: windows, pooling levels and gap lengths are counted in frames, and the network's
+    #: time resolution is its pooling's: at 30 fps a 1 s gap fills no better than lerp
+    #: (0.96 x lerp, the studio-data issue), at 120 fps, resampled, as on CMU (0.57). So
+    #: it trains and runs at 120 fps, whatever the takes' rate.
+    MODEL_FPS = 120.0
     QUICK_FIT = {
         "epochs": "1",
         "frames_per_epoch": "512",
@@ -256,7 +261,7 @@ class ConvAutoencoderEngine(Engine):
         )
         self.net_, self.layout_, self.constant_ = net, layout, constant
         self.mean_, self.std_, self.loss_log_ = mean, std, np.array(log)
-        self.skeleton_signature_ = skeleton.signature()
+        self.fitted_on(motions[0])
 
     # -- fitted state ---------------------------------------------------------------
     def training_record(self) -> dict[str, list[float]]:
@@ -333,10 +338,16 @@ class ConvAutoencoderEngine(Engine):
     @one_blas_thread
     def clean(self, observation: Observation, /, *, constraints: Constraints | None = None) -> CleanResult:
         """Fill the gaps of (and denoise) ``observation``; ``constraints`` maps a joint index
-        to (frames (n,), world positions (n, 3) in file units) that guide the network."""
-        self.require_fitted()
+        to (frames (n,), world positions (n, 3) in file units) that guide the network.
+        The take is cleaned in the engine's view of it (:meth:`model_view`: body-rooted,
+        at the rate of the weights) and the result put back on it."""
+        view = self.model_view(observation)
+        if constraints:
+            constraints = {view.joint(j): (view.frames(f), P) for j, (f, P) in constraints.items()}
+        return view.restore(self._clean(view.observation, constraints), self.params.keep_observed)
+
+    def _clean(self, observation: Observation, constraints: Constraints | None) -> CleanResult:
         skeleton = observation.skeleton
-        self.check_skeleton(skeleton)
         layout = self.layout_
         linear = bridge_gaps(observation)
         holes = self.bridged_holes(observation, linear)

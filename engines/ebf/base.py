@@ -15,7 +15,7 @@ import numpy as np
 
 from workbench.core.channels import retime, unwrap_deg
 from workbench.core.motion import Motion, Observation
-from workbench.engine import Engine, training
+from workbench.engine import CleanResult, Engine, training
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
@@ -116,9 +116,15 @@ class WindowEngine(Engine):
     def _frame_data(self, observation: Observation) -> FrameData:
         return frame_data(observation, Layout.of(observation.skeleton), self.norm_, self.WITH_MASK)
 
-    def _ready(self, observation: Observation) -> None:
-        self.require_fitted()
-        self.check_skeleton(observation.skeleton)
+    def clean(self, observation: Observation, /) -> CleanResult:
+        """Clean the take in the engine's view of it (:meth:`model_view`: body-rooted, at the
+        rate of the weights) and put the result back on the take."""
+        view = self.model_view(observation)
+        return view.restore(self._clean(view.observation), self.info.keeps_observed)
+
+    def _clean(self, observation: Observation) -> CleanResult:
+        """:meth:`clean` on an observation in the engine's view (subclasses implement it)."""
+        raise NotImplementedError
 
     def _run(self, data: FrameData, centres: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """Run the network on the windows around ``centres`` (N,) of a clip: cleaned
@@ -147,7 +153,7 @@ class WindowEngine(Engine):
         motions = self.training_motions(motions)
         with reproducible_training(self.params.seed):
             self._train(motions)
-        self.skeleton_signature_ = motions[0].skeleton.signature()
+        self.fitted_on(motions[0])
         return self
 
     def _train(self, motions: list[Motion]) -> None:

@@ -157,10 +157,9 @@ class EBD(WindowEngine):
         return pairs
 
     @one_blas_thread
-    def clean(self, observation: Observation, /) -> CleanResult:
+    def _clean(self, observation: Observation) -> CleanResult:
         """The observation with its missing joint angles synthesised (observed samples
         unchanged); no diagnostics."""
-        self._ready(observation)
         data = self._frame_data(observation)
         X = data.X.copy()
         centres = np.flatnonzero(data.missing.any(axis=1))

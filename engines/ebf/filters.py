@@ -162,9 +162,8 @@ class FilterEngine(WindowEngine):
         return pairs
 
     @one_blas_thread
-    def clean(self, observation: Observation, /) -> CleanResult:
+    def _clean(self, observation: Observation) -> CleanResult:
         """Cleaned motion (gaps bridged linearly, then filtered) and diagnostics (F, D)."""
-        self._ready(observation)
         data = self._frame_data(observation)
         pred, diag = self._run(data, np.arange(data.n_frames))
         cols = angle_columns(observation.skeleton)

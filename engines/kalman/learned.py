@@ -102,7 +102,6 @@ class LearnedKalman(Engine):
     def __init__(self, params=None) -> None:
         super().__init__(params)
         self.joints_: np.ndarray | None = None
-        self.fps_: float | None = None
         self.mean_: np.ndarray | None = None  # (G, 3) mean pose of the modelled joints
         self.A1_: np.ndarray | None = None  # (G, 3, 3)
         self.A2_: np.ndarray | None = None  # (G, 3, 3)
@@ -113,7 +112,7 @@ class LearnedKalman(Engine):
 
     # -- training -------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "LearnedKalman":
-        motions = self.training_motions(motions, same_fps=True)
+        motions = self.training_motions(motions)
         joints = _model_joints(motions[0])
         cols = joint_angle_columns(joints)
         G = joints.size
@@ -143,10 +142,10 @@ class LearnedKalman(Engine):
             offset[g] = -Bx @ mean[g]
             E = T - R @ B.T
             Q_fit[g] = E.T @ E / N
-        self.joints_, self.fps_, self.mean_ = joints, float(motions[0].fps), mean
+        self.joints_, self.mean_ = joints, mean
         self.A1_, self.A2_, self.offset_, self.Q_fit_, self.Q_cv_ = A1, A2, offset, Q_fit, Q_cv
         self.n_frames_ = int(sum(x.shape[0] for x in clips))
-        self.skeleton_signature_ = motions[0].skeleton.signature()
+        self.fitted_on(motions[0])
         return self
 
     # -- fitted state ---------------------------------------------------------------
@@ -154,7 +153,6 @@ class LearnedKalman(Engine):
         self.require_fitted()
         return {
             "joints": self.joints_,
-            "fps": np.array(self.fps_),
             "mean": self.mean_,
             "A1": self.A1_,
             "A2": self.A2_,
@@ -167,7 +165,6 @@ class LearnedKalman(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         try:
             self.joints_ = np.asarray(arrays["joints"], int)
-            self.fps_ = float(arrays["fps"])
             self.mean_, self.A1_, self.A2_ = arrays["mean"], arrays["A1"], arrays["A2"]
             self.offset_, self.Q_fit_, self.Q_cv_ = arrays["offset"], arrays["Q_fit"], arrays["Q_cv"]
             self.n_frames_ = int(arrays["n_frames"])
@@ -190,14 +187,13 @@ class LearnedKalman(Engine):
 
     # -- cleaning -------------------------------------------------------------------
     def clean(self, observation: Observation, /) -> CleanResult:
-        self.require_fitted()
-        self.check_skeleton(observation.skeleton)
+        """Clean the take in the engine's view of it (:meth:`model_view`: body-rooted, at the
+        rate its dynamics were learnt at) and put the result back on the take."""
+        view = self.model_view(observation)
+        return view.restore(self._clean(view.observation))
+
+    def _clean(self, observation: Observation) -> CleanResult:
         motion = observation.motion
-        if self.params.learned_dynamics and abs(motion.fps - self.fps_) > 1e-6:
-            raise EngineError(
-                f"engine 'kalman-learned' learnt its dynamics at {self.fps_:g} fps; "
-                f"this take is {motion.fps:g} fps (use learned_dynamics=false or retrain)"
-            )
         p = prepare(observation)
         Y, (q, r) = smooth_channels(p.bridged, p.mask)  # kalman for every channel
         F = motion.n_frames

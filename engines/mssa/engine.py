@@ -212,14 +212,18 @@ class MSSA(Engine):
         if max(m.n_frames for m in motions) < M:
             raise EngineError(f"mssa: no training motion has the {M} frames a window needs")
         self.models_ = {space: self._fit_space(motions, space) for space in SPACES}
-        self.skeleton_signature_ = motions[0].skeleton.signature()
+        self.fitted_on(motions[0])
         return self
 
     # -- cleaning ---------------------------------------------------------------------
     def clean(self, observation: Observation, /) -> CleanResult:
-        self.require_fitted()
+        """Clean the take in the engine's view of it (:meth:`model_view`: body-rooted, at the
+        rate of the weights) and put the result back on the take."""
+        view = self.model_view(observation)
+        return view.restore(self._clean(view.observation))
+
+    def _clean(self, observation: Observation) -> CleanResult:
         skeleton = observation.skeleton
-        self.check_skeleton(skeleton)
         model = self.models_[self.params.space]
         raw, mask = observation.motion.channels, observation.channel_observed
         X = bridge_gaps(observation)

@@ -295,7 +295,7 @@ def test_save_says_why_it_cannot_and_leaves_no_file(window, qtbot, tmp_path):
 def test_the_parameter_panel_keeps_a_trained_engines_weights_folder(window, qtbot):
     from engines.mssa import MSSA
 
-    folder = MSSA().default_weights_dir()
+    folder = MSSA().default_weights_dir() / "cmu"
     spec = f"mssa:weights={folder}"
     s, panel = window.session, window.controls.engines
     s.set_specs(["identity", spec], spec)

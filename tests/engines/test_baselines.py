@@ -508,7 +508,7 @@ def test_learned_kalman_at_least_matches_kalman_on_held_out_clips(cmu, learned):
 def test_learned_dynamics_variant_runs(cmu, learned):
     engine = create("kalman-learned:learned_dynamics=true", pretrained=False)
     engine.load_state_arrays(learned.state_arrays(), {})
-    engine.skeleton_signature_ = learned.skeleton_signature_
+    engine.skeleton_signature_, engine.fps_ = learned.skeleton_signature_, learned.fps_
     truth = cmu(HELD_OUT[0]).slice(0, 200)
     out = engine.clean(with_gaps(noisy(truth))).motion
     assert np.isfinite(out.channels).all()
@@ -517,7 +517,7 @@ def test_learned_dynamics_variant_runs(cmu, learned):
 def test_learned_kalman_refuses_other_skeletons(learned, kick, clip):
     with pytest.raises(EngineError, match="skeleton") as err:
         learned.clean(Observation(kick.slice(0, 100)))
-    assert "43 joints" in str(err.value)
+    assert "43 body joints" in str(err.value)
     with pytest.raises(EngineError, match="skeleton"):
         create("kalman-learned", pretrained=False).fit([clip, kick])
 

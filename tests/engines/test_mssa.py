@@ -34,7 +34,7 @@ def fitted(clips):
 def with_params(engine: MSSA, **changes) -> MSSA:
     """Another engine sharing ``engine``'s fitted bases."""
     other = MSSA(dataclasses.replace(engine.params, **changes))
-    other.models_, other.skeleton_signature_ = engine.models_, engine.skeleton_signature_
+    other.models_, other.skeleton_signature_, other.fps_ = engine.models_, engine.skeleton_signature_, engine.fps_
     return other
 
 
@@ -283,11 +283,12 @@ def test_save_load_round_trip_gives_identical_output(fitted, walk, tmp_path):
 def test_committed_weights_load_and_were_fitted_on_the_train_split_only(clips):
     engine = registry.create("mssa")
     assert engine.skeleton_signature_ is not None, "engines/mssa/weights/ is missing"
-    manifest = json.loads((engine.default_weights_dir() / "manifest.json").read_text())
     test_ids = {c.id for c in select(clips, "test")}
     assert test_ids
-    assert manifest["training"]["split"] == "train"
-    assert manifest["training"]["clips"] and not test_ids & set(manifest["training"]["clips"])
+    for folder in engine.committed_weights().values():
+        manifest = json.loads((folder / "manifest.json").read_text())
+        assert manifest["training"]["split"] == "train"
+        assert manifest["training"]["clips"] and not test_ids & set(manifest["training"]["clips"])
     assert all(m.energy_share >= engine.params.energy_kept - 1e-12 for m in engine.models_.values())
 
 

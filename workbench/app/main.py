@@ -27,7 +27,6 @@ OUTLIER_CORRUPTION = "angular:0.5+outliers:0.05"
 #: classical engines (no trained engine has weights for this skeleton yet)
 STUDIO_CLIP = "bandai/walk/dataset-1_walk_happy_001"
 STUDIO_CORRUPTION = "angular:0.5+gaps:0.04,0.1s"
-STUDIO_ENGINES = ("lerp>gaussian", "butterworth", "kalman")
 
 
 def has_display() -> bool:
@@ -168,7 +167,7 @@ def make_screenshots(
     s.set_frame(frame)
     shoot("recorded")
     if _in_catalogue(STUDIO_CLIP):
-        s.set_specs(list(STUDIO_ENGINES))
+        s.set_specs(specs)  # the trained engines pick their studio weights
         s.open(STUDIO_CLIP, STUDIO_CORRUPTION, 0)
         settle(window)
         s.set_frame(s.take.n_frames // 2)

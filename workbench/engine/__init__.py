@@ -8,6 +8,8 @@ the toolkit they share. Engines import from here and from the rest of the public
   gaps) and putting the result back; Gaussian smoothing along time.
 - :mod:`.smoothing`: the constant-velocity smoother and its noise estimates, and what
   IK keeps of an observation for the engines that clean positions.
+- :mod:`.view`: a take as a trained engine models it (rooted at the body, at its
+  weights' rate) and the way back.
 - :mod:`.weights`: checksummed weights on disk, never pickled.
 - :mod:`.threads`: numpy's BLAS on one thread beside torch; :mod:`.torch_support`:
   seeding, threads and state arrays for torch engines (imports torch: import it inside

@@ -37,6 +37,9 @@ import numpy as np
 from ..core.motion import Motion, Observation
 from ..core.skeleton import Skeleton
 
+if typing.TYPE_CHECKING:
+    from .view import ModelView
+
 TASKS = frozenset({"denoise", "fill"})
 #: the spec option of trainable engines that names a folder of trained weights
 WEIGHTS_OPTION = "weights"
@@ -100,14 +103,8 @@ def _of_role(params: typing.Any, role: str) -> dict[str, typing.Any]:
     return {name: getattr(params, name) for name, r in param_roles(params).items() if r == role}
 
 
-#: the engines to point a user to for takes no trained engine models (translated joints)
+#: the engines to point a user to for takes no trained engine models
 CLASSICAL = "kalman, gaussian, butterworth, lerp, spline"
-
-
-def _moving(skeleton: Skeleton) -> str:
-    """What moves by position channels, in words: ``Hips moves by position channels``."""
-    names = [skeleton.names[j] for j in skeleton.translated]
-    return f"{', '.join(names)} move{'s' if len(names) == 1 else ''} by position channels"
 
 
 class EngineError(ValueError):
@@ -238,9 +235,17 @@ class Engine:
         Spec options under which ``fit`` takes seconds on a few short takes: what the
         conformance suite trains with to check that a seeded fit repeats (a class
         attribute, empty by default).
+    MODEL_FPS : float or None
+        The rate (fps) ``fit`` resamples the training takes to (a class attribute); None,
+        the default: the takes' own, which they must share.
     skeleton_signature_ : str or None
-        The fitted skeleton layout, :meth:`workbench.core.skeleton.Skeleton.signature`;
-        trainable engines set it in ``fit`` and :meth:`load` sets it. None: not fitted.
+        The fitted skeleton layout (of the takes' body view,
+        :func:`workbench.engine.view.body_skeleton`),
+        :meth:`workbench.core.skeleton.Skeleton.signature`; trainable engines set it in
+        ``fit`` (:meth:`fitted_on`) and :meth:`load` sets it. None: not fitted.
+    fps_ : float or None
+        The frame rate the fitted model runs at; takes of other rates are resampled to it
+        (:meth:`model_view`). Set with :attr:`skeleton_signature_`.
     weights_folder : Path or None
         The folder that the spec option ``weights=DIR`` names, to load trained state from
         instead of the committed weights (None: the committed ones).
@@ -258,6 +263,14 @@ class Engine:
     #: the folder that the spec option ``weights=DIR`` names, to load trained state from
     #: instead of the committed weights (None: the committed ones)
     weights_folder: Path | None = None
+    #: the frame rate the fitted model runs at (fps; None: not fitted): takes of another
+    #: rate are resampled to it (:meth:`model_view`)
+    fps_: float | None = None
+    #: the rate ``fit`` resamples its training takes to (fps); None: train at the takes'
+    #: own rate, which they must share
+    MODEL_FPS: ClassVar[float | None] = None
+    #: the folder the weights in use were loaded from (None: fitted here, or not fitted)
+    loaded_from_: Path | None = None
 
     def __init__(self, params: typing.Any = None) -> None:
         self.params = self.Params() if params is None else params
@@ -383,30 +396,34 @@ class Engine:
         raise NotImplementedError
 
     # -- skeleton checks ------------------------------------------------------------
-    def training_motions(self, motions: Sequence[Motion], same_fps: bool = False) -> list[Motion]:
-        """``motions`` as a list, checked as every trained engine's ``fit`` needs them.
+    def training_motions(self, motions: Sequence[Motion]) -> list[Motion]:
+        """``motions`` as a trained engine's ``fit`` takes them: in their body view, at
+        the model's rate.
 
-        At least one, all of one skeleton layout (and, with ``same_fps``, one frame rate),
-        none with translated joints, which no trained engine models yet.
+        At least one, all of one skeleton layout; each is shown as the engine sees a
+        take (:mod:`workbench.engine.view`): in its body view (a reference node above the
+        pelvis collapsed into it) and resampled to :attr:`MODEL_FPS` where the class sets
+        one; without it they must share one frame rate.
 
         Parameters
         ----------
         motions : Sequence[Motion]
             The training takes.
-        same_fps : bool
-            Also require one frame rate (to within 1e-6 fps).
 
         Returns
         -------
         list of Motion
-            ``motions``, in their order.
+            ``motions``, in their order, in their body view at the model's rate.
 
         Raises
         ------
         EngineError
-            Saying which rule they break; for translated joints it names the classical
-            engines to clean such takes with.
+            Saying which rule they break, or what the body view refuses (a joint below
+            the body root moving by position channels; the message names the classical
+            engines to clean such takes with).
         """
+        from .view import body_skeleton, resample, to_body
+
         motions = list(motions)
         name = self.info.name
         if not motions:
@@ -418,17 +435,53 @@ class Engine:
                     f"engine {name!r} trains on one skeleton layout; {first.name or 'motion 0'} "
                     f"and {m.name or 'another'} have different ones"
                 )
-            if same_fps and abs(m.fps - first.fps) > 1e-6:
+            if self.MODEL_FPS is None and abs(m.fps - first.fps) > 1e-6:
                 raise EngineError(
-                    f"engine {name!r}: the training motions mix frame rates ({first.fps:g} and {m.fps:g} fps)"
+                    f"engine {name!r}: the training motions mix frame rates ({first.fps:g} and {m.fps:g} fps); "
+                    "train on takes of one rate"
                 )
-        if first.skeleton.translated:
-            raise EngineError(
-                f"engine {name!r} cannot be trained on skeletons with translated joints yet "
-                f"({_moving(first.skeleton)}); clean such takes with a classical engine: "
-                f"{CLASSICAL}"
-            )
-        return motions
+        body = body_skeleton(first.skeleton)
+        fps = first.fps if self.MODEL_FPS is None else self.MODEL_FPS
+        return [resample(to_body(m, body), fps) for m in motions]
+
+    def fitted_on(self, motion: Motion) -> None:
+        """Record what ``fit`` fitted for: the skeleton layout (:attr:`skeleton_signature_`)
+        and frame rate (:attr:`fps_`) of ``motion``, one of :meth:`training_motions`."""
+        self.skeleton_signature_ = motion.skeleton.signature()
+        self.fps_ = float(motion.fps)
+        self.loaded_from_ = None
+
+    def model_view(self, observation: Observation) -> "ModelView":
+        """The observation as this fitted engine models it, with the way back.
+
+        Picks the committed weights trained for the take's skeleton when this engine
+        runs on committed weights (:meth:`use_weights_for`), checks the skeleton
+        (:meth:`check_skeleton`) and shows the take in its body view at :attr:`fps_`
+        (:class:`workbench.engine.view.ModelView`; ``restore`` puts a result back).
+
+        Parameters
+        ----------
+        observation : Observation
+            The take to clean.
+
+        Returns
+        -------
+        ModelView
+
+        Raises
+        ------
+        NotFittedError
+            Neither fitted nor loaded.
+        EngineError
+            A skeleton it has no weights for, or one no trained engine models.
+        """
+        from .view import ModelView, body_skeleton
+
+        body = body_skeleton(observation.skeleton)
+        self.use_weights_for(body)
+        self.require_fitted()
+        self.check_skeleton(body)
+        return ModelView.of(observation, self.fps_, body)
 
     def check_skeleton(self, skeleton: Skeleton) -> None:
         """Refuse a skeleton of another layout than the one this engine was fitted for.
@@ -438,27 +491,20 @@ class Engine:
         Parameters
         ----------
         skeleton : Skeleton
-            The take's skeleton.
+            The skeleton the engine models a take in: its body view
+            (:func:`workbench.engine.view.body_skeleton`).
 
         Raises
         ------
         EngineError
             ``skeleton.signature()`` differs from :attr:`skeleton_signature_`. The message
-            says how to train the engine for it, or, when it has translated joints, which
-            classical engines can clean it.
+            says how to train the engine for it.
         """
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
-            mine = (
-                f"engine {self.info.name!r} was trained for another skeleton ({self.skeleton_description_}); "
-                f"this take has {skeleton.n_joints} joints rooted at {skeleton.names[0]!r}"
-            )
-            if skeleton.translated:  # no trained engine models them yet
-                raise EngineError(
-                    f"{mine}, and joints it cannot model yet: {_moving(skeleton)}. "
-                    f"Clean it with a classical engine: {CLASSICAL}."
-                )
             raise EngineError(
-                f"{mine}. Train it on takes of this skeleton "
+                f"engine {self.info.name!r} has no weights for this skeleton ({skeleton.n_joints} body joints "
+                f"rooted at {skeleton.names[0]!r}; its weights are for {self.skeleton_description_}). "
+                "Train it on takes of this skeleton "
                 f"(`workbench train {self.info.name} --data DIR --out FOLDER`) and clean with "
                 f"`{self.info.name}:{WEIGHTS_OPTION}=FOLDER`."
             )
@@ -571,6 +617,7 @@ class Engine:
             "spec": self.spec,
             "params": dataclasses.asdict(self.params),
             "skeleton_signature": self.skeleton_signature_,
+            "fps": self.fps_,
             **self.training_record(),
             **(extra_manifest or {}),
         }
@@ -610,6 +657,9 @@ class Engine:
             raise EngineError(
                 f"{folder}: these weights are for engine {manifest.get('engine')!r}, not {self.info.name!r}"
             )
+        fps = manifest.get("fps")
+        if not isinstance(fps, (int, float)) or not fps > 0:
+            raise EngineError(f"{folder}: the weights' manifest does not say the frame rate they were trained at")
         asked, self.params = self.params, self.weights_params(manifest, folder)
         try:
             self.load_state_arrays(arrays, manifest)
@@ -617,6 +667,8 @@ class Engine:
             self.params = asked  # all or nothing: as it was before
             raise
         self.skeleton_signature_ = manifest["skeleton_signature"]
+        self.fps_ = float(fps)
+        self.loaded_from_ = Path(folder)
         return self
 
     def weights_params(self, manifest: Mapping, folder: str | Path = "") -> typing.Any:
@@ -683,7 +735,9 @@ class Engine:
         return "-".join(parts)
 
     def default_weights_dir(self) -> Path:
-        """Where the committed weights of this variant live: ``engines/<package>/weights/<variant>/``.
+        """Where the committed weights of this variant live: ``engines/<package>/weights/<variant>/``,
+        one folder in it per skeleton, named for the data set they were trained on
+        (``cmu/``, ``bandai/``).
 
         Returns
         -------
@@ -696,11 +750,36 @@ class Engine:
         module = sys.modules[type(self).__module__]
         return Path(module.__file__).resolve().parent / "weights" / self.variant
 
-    def load_pretrained(self) -> "Engine":
-        """Load the weights of ``weights_folder`` when set, else the committed weights, if any.
+    def committed_weights(self) -> dict[str, Path]:
+        """The committed weights of this variant, by the skeleton they were trained for.
 
-        The committed weights (:meth:`default_weights_dir`) are loaded when this engine
-        is trainable and has some (a ``manifest.json`` there); otherwise nothing is.
+        Returns
+        -------
+        dict of str to Path
+            Skeleton signature (of the body view) to the folder in
+            :meth:`default_weights_dir` whose manifest records it, folders in name order;
+            empty for an engine that is not trainable or has none. A manifest that cannot
+            be read is left out here and refused with its reason by :meth:`load`.
+        """
+        import json
+
+        found: dict[str, Path] = {}
+        if not self.info.trainable or not self.default_weights_dir().is_dir():
+            return found
+        for manifest in sorted(self.default_weights_dir().glob("*/manifest.json")):
+            try:
+                signature = json.loads(manifest.read_text(encoding="utf-8"))["skeleton_signature"]
+            except (OSError, ValueError, KeyError, TypeError):
+                continue
+            found.setdefault(signature, manifest.parent)
+        return found
+
+    def load_pretrained(self) -> "Engine":
+        """Load the weights of ``weights_folder`` when set, else committed weights, if any.
+
+        Of the committed weights (:meth:`committed_weights`), those in the first folder
+        by name are loaded; :meth:`model_view` switches to the ones trained for a take's
+        skeleton when it cleans one (:meth:`use_weights_for`).
 
         Returns
         -------
@@ -714,9 +793,42 @@ class Engine:
         """
         if self.weights_folder is not None:
             return self.load(self.weights_folder)
-        if self.info.trainable and (self.default_weights_dir() / "manifest.json").exists():
-            self.load(self.default_weights_dir())
+        folders = sorted(self.committed_weights().values())
+        if folders:
+            self.load(folders[0])
         return self
+
+    def committed_for(self, skeleton: Skeleton) -> Path | None:
+        """The committed weights this engine switches to for ``skeleton`` (a body view,
+        :func:`workbench.engine.view.body_skeleton`), if it runs on committed weights.
+
+        Returns
+        -------
+        Path or None
+            The folder of :meth:`committed_weights` trained for ``skeleton``; None when
+            there is none, or when the weights in use are not committed ones (fitted
+            here, or a folder a user named: theirs to choose).
+        """
+        if self.weights_folder is not None or self.loaded_from_ is None:
+            return None
+        if self.loaded_from_.parent != self.default_weights_dir():
+            return None
+        return self.committed_weights().get(skeleton.signature())
+
+    def use_weights_for(self, skeleton: Skeleton) -> None:
+        """Switch to the committed weights trained for ``skeleton`` (a body view) where
+        :meth:`committed_for` names some; otherwise change nothing (and
+        :meth:`check_skeleton` says what is missing).
+
+        Raises
+        ------
+        EngineError
+            As :meth:`load`.
+        """
+        if skeleton.signature() != self.skeleton_signature_:
+            folder = self.committed_for(skeleton)
+            if folder is not None:
+                self.load(folder)
 
 
 class Pipeline(Engine):

@@ -4,7 +4,8 @@ Each check in :data:`CHECKS` is ``check(engine, name=..., motion=..., foreign=..
 make_untrained=..., training=...)``: ``engine`` is ready (a trained one fitted or
 loaded); ``motion`` a short clean take of its skeleton; ``foreign`` takes of other
 skeleton layouts (a skeleton-agnostic engine must clean each, a trained one refuse
-each); ``make_untrained()`` a fresh engine with the quick training options of
+each it has no committed weights for, and clean the others); ``make_untrained()`` a
+fresh engine with the quick training options of
 :attr:`workbench.engine.Engine.QUICK_FIT`, and ``training`` the short clean takes it is
 fitted on. A check raises AssertionError naming the engine and the broken rule, or
 :class:`CheckSkipped` with the reason it does not apply (never a silent pass).
@@ -104,6 +105,16 @@ def check_result_is_not_a_view(engine, name: str, motion: Motion, **_) -> None:
         )
 
 
+def _has_committed_weights_for(engine, skeleton) -> bool:
+    """The engine runs on committed weights and has some for ``skeleton``'s body view."""
+    from workbench.engine.view import body_skeleton
+
+    try:
+        return engine.committed_for(body_skeleton(skeleton)) is not None
+    except EngineError:  # a skeleton no trained engine models
+        return False
+
+
 def check_foreign_skeleton(
     engine, name: str, motion: Motion, foreign: Motion | Sequence[Motion] | None = None, **_
 ) -> None:
@@ -111,6 +122,9 @@ def check_foreign_skeleton(
     if not others:
         raise CheckSkipped("no take of another skeleton layout was given")
     for other in others:
+        if engine.info.trainable and _has_committed_weights_for(engine, other.skeleton):
+            check_shapes_and_finite(engine, name, other)  # the weights for its skeleton, picked
+            continue
         if engine.info.trainable:
             try:
                 engine.clean(_noisy(other))

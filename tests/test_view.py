@@ -1,0 +1,97 @@
+"""The view trained engines model a take in (workbench.engine.view): the body rooted at the
+pelvis, at the weights' rate; and the committed weights picked by the take's skeleton."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workbench import registry
+from workbench.core.motion import Observation
+from workbench.corruption import parse_corruption
+from workbench.engine import CleanResult, EngineError
+from workbench.engine.view import ModelView, body_skeleton, from_body, resample, to_body
+
+
+def test_a_reference_node_collapses_into_the_body_root(studio_take, walk):
+    body = body_skeleton(studio_take.skeleton)
+    assert body.names[0] == "Hips" and body.n_joints == studio_take.skeleton.n_joints - 1
+    assert body.has_position[0] and body.has_rotation[0] and not body.translated
+    assert body_skeleton(walk.skeleton) is walk.skeleton and to_body(walk) is walk
+    view = to_body(studio_take)
+    np.testing.assert_allclose(view.positions, studio_take.positions[:, 1:], atol=1e-9)
+    assert from_body(view, studio_take).allclose(studio_take, atol=1e-9)
+
+
+def test_a_moving_reference_node_is_kept_and_the_body_placed_under_it(studio_take):
+    """joint_Root turned and carried: the body view is the body in the world, and back in
+    the take's skeleton the reference node moves as it did."""
+    F = studio_take.n_frames
+    root = np.array([100.0, 0.0, -50.0]) + np.linspace(0, 30, F)[:, None]
+    angles = studio_take.angles_deg.copy()
+    angles[:, 0] = np.stack([np.linspace(0, 40, F), np.linspace(-20, 60, F), np.full(F, 10.0)], axis=1)
+    take = studio_take.replace(root_positions=root, angles_deg=angles)
+    view = to_body(take)
+    np.testing.assert_allclose(view.positions, take.positions[:, 1:], atol=1e-8)
+    back = from_body(view, take)
+    np.testing.assert_allclose(back.positions, take.positions, atol=1e-8)
+    np.testing.assert_allclose(back.root_positions, take.root_positions)
+
+
+def test_a_stretchy_joint_below_the_body_root_is_refused_with_the_engines_that_clean_it(stretchy_take):
+    with pytest.raises(EngineError, match="LowerArm_L moves by position channels below the body root") as err:
+        body_skeleton(stretchy_take.skeleton)
+    assert "kalman" in str(err.value)
+    with pytest.raises(EngineError, match="LowerArm_L"):
+        registry.create("mssa").clean(Observation(stretchy_take))
+
+
+def test_a_30_fps_take_is_seen_at_120_and_comes_back_with_its_observed_samples(studio_take):
+    obs = parse_corruption("block:1s").apply(studio_take, 0)
+    view = ModelView.of(obs, 120.0)
+    assert view.observation.motion.fps == 120.0 and view.observation.n_frames == 4 * (obs.n_frames - 1) + 1
+    assert view.observation.skeleton.n_joints == 21
+    # a frame between two observed ones is observed; one next to the gap is not
+    assert view.observation.observed[::4].tolist() == obs.observed[:, 1:].tolist()
+    D = view.observation.motion.channels.shape[1]
+    sigma = np.full((view.observation.n_frames, D), 8.0)
+    result = view.restore(CleanResult(view.observation.bridged(), {"filter_sigma_frames": sigma}), keep_observed=True)
+    mask = obs.channel_observed
+    assert result.motion.n_frames == obs.n_frames and result.motion.skeleton is obs.skeleton
+    np.testing.assert_array_equal(result.motion.channels[mask], obs.motion.channels[mask])
+    assert np.isfinite(result.motion.channels).all()
+    width = result.diagnostics["filter_sigma_frames"]
+    assert width.shape == mask.shape and set(np.unique(width)) == {0.0, 2.0}  # 8 frames at 120 fps: 2 at 30
+    assert not width[:, :6].any()  # the reference node: no counterpart
+
+
+def test_resampling_keeps_both_ends_at_a_ratio_that_is_not_whole(walk):
+    slow = resample(walk, 50.0)
+    assert slow.n_frames == int(np.ceil((walk.n_frames - 1) * 50 / 120)) + 1
+    np.testing.assert_allclose(slow.positions[[0, -1]], walk.positions[[0, -1]], atol=1e-9)
+    view = ModelView.of(Observation(walk), 50.0)
+    back = view.restore(CleanResult(view.observation.motion)).motion
+    assert back.n_frames == walk.n_frames
+    np.testing.assert_allclose(back.positions[[0, -1]], walk.positions[[0, -1]], atol=1e-9)
+
+
+def test_training_takes_are_shown_as_the_engine_models_them(studio_take, walk):
+    cae, mssa = registry.create("cae", pretrained=False), registry.create("mssa", pretrained=False)
+    (seen,) = cae.training_motions([studio_take])
+    assert seen.fps == cae.MODEL_FPS == 120.0 and seen.skeleton.names[0] == "Hips"
+    assert mssa.training_motions([studio_take])[0].fps == 30.0  # mssa trains at the takes' rate
+    with pytest.raises(EngineError, match="mix frame rates"):
+        mssa.training_motions([walk, walk.replace(fps=60.0)])
+
+
+def test_committed_weights_are_picked_by_the_take_s_skeleton(studio_take, walk):
+    engine = registry.create("mssa")
+    folders = engine.committed_weights()
+    assert {f.name for f in folders.values()} >= {"bandai", "cmu"}
+    for take in (walk.slice(0, 100), studio_take, walk.slice(0, 100)):
+        out = engine.clean(Observation(take)).motion
+        assert out.skeleton is take.skeleton and np.isfinite(out.channels).all()
+        assert engine.loaded_from_ == folders[body_skeleton(take.skeleton).signature()]
+    named = registry.create(f"mssa:weights={folders[walk.skeleton.signature()]}")
+    with pytest.raises(EngineError, match="has no weights for this skeleton"):  # a folder named: kept
+        named.clean(Observation(studio_take))

@@ -1,0 +1,269 @@
+"""A take as a trained engine sees it: rooted at the body, at the rate its model runs at.
+
+Trained engines model a body whose first joint is its root (the pelvis, with the take's
+trajectory in its position channels), sampled at one frame rate. Studio takes differ in
+both ways: a MotionBuilder export carries the body on a reference node (``joint_Root``
+moves the translated ``Hips``), and Bandai's are 30 fps where CMU's are 120. Rather
+than teach every engine both, the engine layer shows each one the same kind of take and
+puts the result back (:class:`ModelView`):
+
+- **Body view** (:func:`body_skeleton`, :func:`to_body`): the joints of the skeleton's
+  :attr:`~workbench.core.skeleton.Skeleton.root_chain` collapse into its last, the body
+  root, which becomes the root: its world position and rotation are the root channels.
+  The result is back in the take's skeleton with the reference joints above the body
+  root as observed (gaps bridged) and the body root's local transform under them
+  (:func:`from_body`). A skeleton whose root is the body root is its own body view.
+- **Rate** (:func:`resample`): channels are resampled linearly in time (angles
+  unwrapped) to the model's rate, and the result back to the take's frames. A resampled
+  frame is observed where both take frames around it are. At a whole ratio (30 to 120
+  fps) every take frame is a model frame, so nothing observed is blurred.
+
+Units: frame rates in frames per second; diagnostics whose names end in ``_frames``
+count frames and are rescaled to the take's frames on the way back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.channels import interpolate_frames, unwrap_deg
+from ..core.motion import Motion, Observation, angle_slice
+from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
+from ..core.skeleton import POSITION_CHANNELS, Skeleton
+from .base import CleanResult, EngineError
+from .signal import rewrap_angles
+
+__all__ = ["body_skeleton", "body_joints", "to_body", "from_body", "resample", "ModelView"]
+
+#: frame rates closer than this are the same rate
+SAME_FPS = 1e-6
+
+
+def body_joints(skeleton: Skeleton) -> np.ndarray:
+    """(J_b,) the joints of the body view, in the skeleton's order: the body root and
+    every joint below it (all joints when the root is the body root)."""
+    return np.arange(skeleton.body_root, skeleton.n_joints)
+
+
+def body_skeleton(skeleton: Skeleton) -> Skeleton:
+    """The skeleton a trained engine models: the body root as root, with position and
+    rotation channels; the skeleton itself when its root is its body root.
+
+    Raises
+    ------
+    EngineError
+        A joint below the body root moves by position channels (a stretchy rig), which
+        no trained engine models.
+    """
+    b = skeleton.body_root
+    loose = [skeleton.names[j] for j in skeleton.translated if j > b]
+    if loose:
+        raise EngineError(
+            f"{', '.join(loose)} move{'s' if len(loose) == 1 else ''} by position channels below the body root "
+            f"{skeleton.names[b]!r}, which no trained engine models; clean the take with a classical engine: "
+            "kalman, gaussian, butterworth, lerp, spline"
+        )
+    if b == 0:
+        return skeleton
+    keep = body_joints(skeleton)
+    rotations = tuple(c for c in skeleton.channels[b] if c not in POSITION_CHANNELS) or (
+        "Zrotation",
+        "Yrotation",
+        "Xrotation",
+    )
+    offsets = skeleton.offsets[keep].copy()
+    offsets[0] = 0.0
+    return Skeleton(
+        names=tuple(skeleton.names[j] for j in keep),
+        parents=(-1,) + tuple(skeleton.parents[j] - b for j in keep[1:]),
+        offsets=offsets,
+        channels=(POSITION_CHANNELS + rotations,) + tuple(skeleton.channels[j] for j in keep[1:]),
+        end_sites=tuple((p - b, off) for p, off in skeleton.end_sites if p >= b),
+        unit_cm=skeleton.unit_cm,
+    )
+
+
+def _chain_transform(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """World position (F, 3) and rotation (F, 3, 3) of the body root."""
+    b = motion.skeleton.body_root
+    return motion.positions[:, b], motion.global_rotations[:, b]
+
+
+def to_body(motion: Motion, body: Skeleton | None = None) -> Motion:
+    """``motion`` in its :func:`body_skeleton` (given as ``body`` if the caller has it):
+    the body root's world position and rotation as root channels, the other joints'
+    angles as they are. NaN where the chain above is NaN. The motion itself when it is
+    its own body view."""
+    skeleton = motion.skeleton
+    b = skeleton.body_root
+    if b == 0:
+        return motion
+    body = body_skeleton(skeleton) if body is None else body
+    P, R = _chain_transform(motion)
+    angles = motion.angles_deg[:, body_joints(skeleton)].copy()
+    finite = np.isfinite(R).all(axis=(1, 2))
+    world = np.full((motion.n_frames, 3), np.nan)
+    world[finite] = matrix_to_euler(R[finite], body.rotation_order(0))
+    angles[:, 0] = np.where(np.isfinite(angles[:, 0]), nearest_euler(world, np.nan_to_num(angles[:, 0])), world)
+    return Motion(body, motion.fps, P, angles, motion.name)
+
+
+def from_body(motion: Motion, carrier: Motion) -> Motion:
+    """A body-view motion back in the take's skeleton: the joints above the body root as
+    in ``carrier`` (the take's motion, finite: an observation bridged), the body root's
+    local rotation and translation placing it where ``motion`` has it, the other
+    joints' angles from ``motion``. ``motion`` itself when the take is its own body view."""
+    skeleton = carrier.skeleton
+    b = skeleton.body_root
+    if b == 0:
+        return motion
+    parent = skeleton.parents[b]
+    P_parent, R_parent = carrier.positions[:, parent], carrier.global_rotations[:, parent]
+    R_body = euler_to_matrix(motion.angles_deg[:, 0], motion.skeleton.rotation_order(0))
+    local = np.swapaxes(R_parent, 1, 2) @ R_body
+    translation = np.einsum("fji,fj->fi", R_parent, motion.root_positions - P_parent)
+    angles = carrier.angles_deg.copy()
+    angles[:, b] = nearest_euler(matrix_to_euler(local, skeleton.rotation_order(b)), carrier.angles_deg[:, b])
+    angles[:, b + 1 :] = motion.angles_deg[:, 1:]
+    translations = carrier.translations.copy()
+    translations[:, skeleton.translated.index(b)] = translation
+    return carrier.replace(angles_deg=angles, translations=translations)
+
+
+def _unwrapped(motion: Motion) -> np.ndarray:
+    X = motion.channels
+    angles = angle_slice(motion.skeleton)
+    X[:, angles] = unwrap_deg(X[:, angles])
+    return X
+
+
+def _frame_times(n_from: int, fps_from: float, fps_to: float) -> np.ndarray:
+    """Times of the frames of a take resampled from ``fps_from`` to ``fps_to``, in frames
+    of the original: every ``fps_from / fps_to`` frames from its first, and one at its
+    last frame where that step does not land on it (so the end is kept)."""
+    n = int(np.ceil((n_from - 1) * fps_to / fps_from - 1e-9)) + 1
+    return np.minimum(np.arange(n) * (fps_from / fps_to), n_from - 1)
+
+
+def resample(motion: Motion, fps: float) -> Motion:
+    """A finite ``motion`` resampled linearly to ``fps`` (angles unwrapped first), from its
+    first frame to its last: ``ceil((F - 1) fps / motion.fps) + 1`` frames, the last one
+    nearer its neighbour where the rates' ratio is not whole. The motion itself at its
+    own rate or with one frame."""
+    if abs(motion.fps - fps) <= SAME_FPS or motion.n_frames < 2:
+        return motion if abs(motion.fps - fps) <= SAME_FPS else motion.replace(fps=fps)
+    t = _frame_times(motion.n_frames, motion.fps, fps)
+    return motion.replace(fps=fps).with_channels(interpolate_frames(_unwrapped(motion), t))
+
+
+def _resample_frames(A: np.ndarray, t: np.ndarray) -> np.ndarray:
+    return A[np.round(t).astype(int)] if A.shape[0] < 2 else interpolate_frames(A, t)
+
+
+@dataclass(frozen=True)
+class ModelView:
+    """An observation as a trained engine sees it, and the way back (:meth:`restore`).
+
+    Attributes
+    ----------
+    source : Observation
+        The take as given.
+    observation : Observation
+        The take in its body view (:func:`body_skeleton`) at the model's rate ``fps``.
+    """
+
+    source: Observation
+    observation: Observation
+
+    @classmethod
+    def of(cls, source: Observation, fps: float, body: Skeleton | None = None) -> "ModelView":
+        """The view of ``source`` at ``fps`` (``body``: its :func:`body_skeleton`, when
+        the caller has it)."""
+        skeleton = source.skeleton
+        body = body_skeleton(skeleton) if body is None else body
+        view = to_body(source.motion, body)
+        observed = source.observed[:, body_joints(skeleton)].copy()
+        observed[:, 0] = source.observed[:, list(skeleton.root_chain)].all(axis=1)
+        if abs(source.motion.fps - fps) > SAME_FPS and source.n_frames >= 2:
+            t = _frame_times(source.n_frames, source.motion.fps, fps)
+            bridged = to_body(source.bridged(), body)
+            seen = observed.astype(float)
+            observed = _resample_frames(seen, t) > 1 - 1e-9  # both frames around observed
+            view = resample(bridged, fps)
+        elif abs(source.motion.fps - fps) > SAME_FPS:
+            view = view.replace(fps=fps)
+        return cls(source, Observation(view, observed))
+
+    def joint(self, j: int) -> int:
+        """The view's index of the take's joint ``j`` (the body root or below it)."""
+        b = self.source.skeleton.body_root
+        if j < b:
+            raise EngineError(f"joint {self.source.skeleton.names[j]!r} is above the body root; no engine models it")
+        return j - b
+
+    def frames(self, frames: np.ndarray) -> np.ndarray:
+        """The view's frames (n,) nearest the take's ``frames`` (n,)."""
+        scale = self.observation.motion.fps / self.source.motion.fps
+        return np.minimum(np.round(np.asarray(frames) * scale).astype(int), self.observation.n_frames - 1)
+
+    @property
+    def changed(self) -> bool:
+        """The view differs from the take: another skeleton or another rate."""
+        return (
+            self.observation.skeleton is not self.source.skeleton or self.observation.n_frames != self.source.n_frames
+        )
+
+    def restore(self, result: CleanResult, keep_observed: bool = False) -> CleanResult:
+        """A result on the view back on the take: its frames, its skeleton, its rate.
+
+        The motion is resampled to the take's frames and put back in its skeleton
+        (:func:`from_body`, the joints above the body root as observed, gaps bridged);
+        with ``keep_observed`` the take's observed samples are put back exactly (angles
+        on the result's branch), as an engine that keeps them promises. Each diagnostic
+        (F_view, ...) is resampled along frames; one over the view's channel matrix
+        (F, D_view) or its joints (F, J_view, ...) is spread over the take's, zero where
+        the view has no counterpart; one named ``*_frames`` is rescaled to take frames.
+        """
+        if not self.changed:
+            return result
+        source, view = self.source, self.observation
+        fps_view, fps_take = view.motion.fps, source.motion.fps
+        t = np.arange(source.n_frames, dtype=float)  # the take's frames, in view frames:
+        if view.n_frames != source.n_frames:
+            t = np.interp(t, _frame_times(source.n_frames, fps_take, fps_view), np.arange(view.n_frames))
+        motion = result.motion.replace(fps=fps_take).with_channels(_resample_frames(_unwrapped(result.motion), t))
+        if source.skeleton.body_root:
+            motion = from_body(motion, source.bridged())
+        X = rewrap_angles(motion.channels, source)
+        if keep_observed:
+            mask = source.channel_observed
+            X[mask] = source.motion.channels[mask]
+        motion = motion.with_channels(X)
+        diagnostics = {}
+        for name, value in result.diagnostics.items():
+            value = _resample_frames(np.asarray(value, float), t)
+            if name.endswith("_frames"):
+                value = value * (fps_take / fps_view)
+            diagnostics[name] = self._spread(value)
+        return CleanResult(motion, diagnostics)
+
+    def _spread(self, value: np.ndarray) -> np.ndarray:
+        """A diagnostic over the view's channels or joints, over the take's."""
+        skeleton, body = self.source.skeleton, self.observation.skeleton
+        if body is skeleton:
+            return value
+        F = value.shape[0]
+        if value.ndim >= 2 and value.shape[1] == body.n_joints:
+            out = np.zeros((F, skeleton.n_joints) + value.shape[2:])
+            out[:, body_joints(skeleton)] = value
+            return out
+        if value.ndim == 2 and value.shape[1] == 3 + 3 * body.n_joints:
+            out = np.zeros((F, 3 + 3 * skeleton.n_joints + 3 * len(skeleton.translated)))
+            b = skeleton.body_root
+            t0 = angle_slice(skeleton).stop + 3 * skeleton.translated.index(b)
+            out[:, t0 : t0 + 3] = value[:, :3]
+            out[:, 3 + 3 * b : 3 + 3 * skeleton.n_joints] = value[:, 3:]
+            return out
+        return value
