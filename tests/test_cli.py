@@ -287,6 +287,19 @@ def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_ro
     assert "to train, leave it out" in capsys.readouterr().err
 
 
+def test_clean_picks_the_weights_of_the_take_s_skeleton_with_no_flag(tmp_path, data_root):
+    """A Bandai take (30 fps, Hips under joint_Root) cleaned by a trained engine uses its
+    Bandai weights, and comes back in its own skeleton and rate, the reference node kept."""
+    take = data_root / "bandai" / "walk" / "dataset-1_walk_active_001.bvh"
+    raw = read_bvh(take)
+    out = tmp_path / "clean.bvh"
+    assert main(["clean", str(take), "-o", str(out), "--engine", "kalman-learned"]) == 0
+    cleaned = read_bvh(out)
+    assert cleaned.skeleton.signature() == raw.skeleton.signature() and cleaned.n_frames == raw.n_frames
+    assert cleaned.fps == raw.fps and np.allclose(cleaned.channels[:, :6], raw.channels[:, :6])
+    assert 0 < np.abs(cleaned.channels - raw.channels).max() < 30
+
+
 def test_clean_writes_a_t_pose_frame_0_back_untouched(tmp_path, data_root, capsys):
     from workbench import registry
     from workbench.core.motion import Observation

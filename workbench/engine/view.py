@@ -32,18 +32,22 @@ from ..core.channels import interpolate_frames, unwrap_deg
 from ..core.motion import Motion, Observation, angle_slice
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
-from .base import CleanResult, EngineError
+from .base import CLASSICAL, CleanResult, EngineError
 from .signal import rewrap_angles
 
 __all__ = ["body_skeleton", "body_joints", "to_body", "from_body", "resample", "ModelView"]
 
 #: frame rates closer than this are the same rate
 SAME_FPS = 1e-6
+#: the body root's rotation channels where the skeleton turns the body above it only
+ZYX_ROTATION = ("Zrotation", "Yrotation", "Xrotation")
 
 
 def body_joints(skeleton: Skeleton) -> np.ndarray:
     """(J_b,) the joints of the body view, in the skeleton's order: the body root and
-    every joint below it (all joints when the root is the body root)."""
+    every joint below it (all joints when the root is the body root). They are the
+    joints from the body root on: each joint of the chain above has one child, and
+    parents come before their children."""
     return np.arange(skeleton.body_root, skeleton.n_joints)
 
 
@@ -63,16 +67,12 @@ def body_skeleton(skeleton: Skeleton) -> Skeleton:
         raise EngineError(
             f"{', '.join(loose)} move{'s' if len(loose) == 1 else ''} by position channels below the body root "
             f"{skeleton.names[b]!r}, which no trained engine models; clean the take with a classical engine: "
-            "kalman, gaussian, butterworth, lerp, spline"
+            f"{CLASSICAL}"
         )
     if b == 0:
         return skeleton
     keep = body_joints(skeleton)
-    rotations = tuple(c for c in skeleton.channels[b] if c not in POSITION_CHANNELS) or (
-        "Zrotation",
-        "Yrotation",
-        "Xrotation",
-    )
+    rotations = tuple(c for c in skeleton.channels[b] if c not in POSITION_CHANNELS) or ZYX_ROTATION
     offsets = skeleton.offsets[keep].copy()
     offsets[0] = 0.0
     return Skeleton(
@@ -85,12 +85,6 @@ def body_skeleton(skeleton: Skeleton) -> Skeleton:
     )
 
 
-def _chain_transform(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """World position (F, 3) and rotation (F, 3, 3) of the body root."""
-    b = motion.skeleton.body_root
-    return motion.positions[:, b], motion.global_rotations[:, b]
-
-
 def to_body(motion: Motion, body: Skeleton | None = None) -> Motion:
     """``motion`` in its :func:`body_skeleton` (given as ``body`` if the caller has it):
     the body root's world position and rotation as root channels, the other joints'
@@ -101,7 +95,7 @@ def to_body(motion: Motion, body: Skeleton | None = None) -> Motion:
     if b == 0:
         return motion
     body = body_skeleton(skeleton) if body is None else body
-    P, R = _chain_transform(motion)
+    P, R = motion.positions[:, b], motion.global_rotations[:, b]  # the body root in the world
     angles = motion.angles_deg[:, body_joints(skeleton)].copy()
     finite = np.isfinite(R).all(axis=(1, 2))
     world = np.full((motion.n_frames, 3), np.nan)
