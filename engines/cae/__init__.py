@@ -8,7 +8,7 @@ Autoencoders for Human Motion Infilling", 3DV) and their Table 1 baselines:
 
 All three share the representation (:mod:`.representation`), the training loop
 (:mod:`.training`) and inference with IK back to joint angles (:mod:`.engine`); only the
-network differs (:mod:`.networks`). Committed weights live in ``weights/<name>/``.
+network differs (:mod:`.networks`). Committed weights live in ``weights/<name>/<dataset>/``.
 """
 
 from __future__ import annotations

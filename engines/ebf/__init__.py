@@ -6,7 +6,7 @@ the paper's ablations ``bf`` (no encoder) and ``nn`` (feed-forward over the wind
 Modules: features (per-frame inputs, windows; numpy), nets (networks and the adaptive
 filter; torch), training (the shared training loop), base (the shared engine class),
 filters (EBF, BF, NN), ebd (EBD), stream (the streaming cleaner). Torch is imported only
-when an engine is fitted, loaded or run. Weights: ``weights/<variant>/``.
+when an engine is fitted, loaded or run. Weights: ``weights/<variant>/<dataset>/``.
 """
 
 from .ebd import EBD

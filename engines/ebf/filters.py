@@ -22,7 +22,7 @@ Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtr
 copy of every clip with ``spatial:0.5``, ``spatial:1`` or ``spatial-ends:0.5,0.1``), as
 marker noise reaches a real take's angles: the paper's angular noise is independent
 per channel, position noise is not. Each variant has its own weights folder,
-``weights/ebf``, ``weights/ebf-bias``, ``weights/ebf-positions``, ...
+``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
 the filter's std in frames (for free filters, the std of the weights over the window;
