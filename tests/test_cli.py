@@ -219,10 +219,15 @@ def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_ref
 
 
 @pytest.mark.slow
-def test_train_refuses_translated_joints_and_defaults_to_the_committed_dataset(capsys):
-    assert main(["train", "kalman-learned", "--dataset", "bandai", "--out", "unused"]) == 2
-    err = capsys.readouterr().err
-    assert "cannot be trained on skeletons with translated joints yet" in err and "Hips" in err
+def test_train_on_the_studio_takes_records_their_rate_skeleton_and_terms(tmp_path):
+    """Bandai's Hips under joint_Root trains as the body view rooted at the Hips, at the
+    takes' 30 fps; the manifest carries the data set's non-commercial terms."""
+    out = tmp_path / "kl"
+    assert main(["train", "kalman-learned", "--dataset", "bandai", "--out", str(out)]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["fps"] == 30.0 and manifest["skeleton_signature"].startswith("Hips<-1>")
+    assert [d["name"] for d in manifest["training"]["datasets"]] == ["bandai"]
+    assert "CC BY-NC" in json.dumps(manifest["training"]["datasets"])
 
 
 def test_per_clip_marks_a_metric_no_seed_defines():
