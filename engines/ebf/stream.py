@@ -58,8 +58,14 @@ class FilterStream:
     of one skeleton at ``fps`` frames per second."""
 
     def __init__(self, engine, skeleton: Skeleton, fps: float) -> None:
+        engine.use_weights_for(skeleton)  # the committed weights trained for it, if any
         engine.require_fitted()
-        engine.check_skeleton(skeleton)
+        engine.check_skeleton(skeleton)  # frame by frame: no body view, no resampling
+        if abs(fps - engine.fps_) > 1e-6:
+            raise EngineError(
+                f"engine {engine.info.name!r} streams takes at the {engine.fps_:g} fps its weights run at, "
+                f"not {fps:g}; clean the take offline (`workbench clean`), which resamples it"
+            )
         self.engine = engine
         self.layout = Layout.of(skeleton)
         self.fps = float(fps)

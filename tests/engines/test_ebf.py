@@ -346,3 +346,14 @@ def test_ablations_have_committed_weights(name, walk):
     engine = registry.create(name)
     res = engine.clean(parse_corruption("angular:0.5").apply(walk.slice(0, 60), seed=0))
     assert np.isfinite(res.motion.channels).all()
+
+
+def test_a_stream_picks_the_weights_of_its_skeleton_and_runs_at_their_rate(walk, studio_take):
+    """A fresh engine starts on one committed set (the first folder by name); a stream of
+    CMU takes switches to the CMU weights, and a stream at another rate is refused."""
+    engine = registry.create("ebf")
+    engine.clean(Observation(studio_take.slice(0, 40)))  # now on the Bandai weights
+    stream = engine.stream(walk.skeleton, walk.fps)
+    assert engine.skeleton_signature_ == walk.skeleton.signature() and stream.push(walk.channels[0]) is None
+    with pytest.raises(EngineError, match="streams takes at the 120 fps its weights run at, not 60"):
+        engine.stream(walk.skeleton, 60.0)
