@@ -95,3 +95,11 @@ def test_committed_weights_are_picked_by_the_take_s_skeleton(studio_take, walk):
     named = registry.create(f"mssa:weights={folders[walk.skeleton.signature()]}")
     with pytest.raises(EngineError, match="has no weights for this skeleton"):  # a folder named: kept
         named.clean(Observation(studio_take))
+
+
+def test_a_one_frame_take_comes_back_at_its_own_rate(walk, studio_take):
+    for take in (walk.slice(0, 1), studio_take.slice(0, 1)):
+        view = ModelView.of(Observation(take), 50.0)
+        assert view.observation.motion.fps == 50.0 and view.observation.n_frames == 1
+        back = view.restore(CleanResult(view.observation.motion)).motion
+        assert back.fps == take.fps and back.skeleton is take.skeleton and back.allclose(take, atol=1e-9)

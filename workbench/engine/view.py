@@ -24,12 +24,12 @@ count frames and are rescaled to the take's frames on the way back.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..core.channels import interpolate_frames, unwrap_deg
-from ..core.motion import Motion, Observation, angle_slice
+from ..core.motion import Motion, Observation, angle_slice, channel_count
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
 from .base import CLASSICAL, CleanResult, EngineError
@@ -146,8 +146,10 @@ def resample(motion: Motion, fps: float) -> Motion:
     first frame to its last: ``ceil((F - 1) fps / motion.fps) + 1`` frames, the last one
     nearer its neighbour where the rates' ratio is not whole. The motion itself at its
     own rate or with one frame."""
-    if abs(motion.fps - fps) <= SAME_FPS or motion.n_frames < 2:
-        return motion if abs(motion.fps - fps) <= SAME_FPS else motion.replace(fps=fps)
+    if abs(motion.fps - fps) <= SAME_FPS:
+        return motion
+    if motion.n_frames < 2:
+        return motion.replace(fps=fps)
     t = _frame_times(motion.n_frames, motion.fps, fps)
     return motion.replace(fps=fps).with_channels(interpolate_frames(_unwrapped(motion), t))
 
@@ -166,10 +168,14 @@ class ModelView:
         The take as given.
     observation : Observation
         The take in its body view (:func:`body_skeleton`) at the model's rate ``fps``.
+    bridged : Motion or None
+        The take with its gaps bridged (:meth:`Observation.bridged`), made once where a
+        way needs it (resampling there, the joints above the body root back); else None.
     """
 
     source: Observation
     observation: Observation
+    bridged: Motion | None = field(default=None, repr=False)
 
     @classmethod
     def of(cls, source: Observation, fps: float, body: Skeleton | None = None) -> "ModelView":
@@ -177,18 +183,17 @@ class ModelView:
         the caller has it)."""
         skeleton = source.skeleton
         body = body_skeleton(skeleton) if body is None else body
-        view = to_body(source.motion, body)
+        interpolated = abs(source.motion.fps - fps) > SAME_FPS and source.n_frames >= 2
+        bridged = source.bridged() if interpolated or skeleton.body_root else None
         observed = source.observed[:, body_joints(skeleton)].copy()
         observed[:, 0] = source.observed[:, list(skeleton.root_chain)].all(axis=1)
-        if abs(source.motion.fps - fps) > SAME_FPS and source.n_frames >= 2:
+        if interpolated:
             t = _frame_times(source.n_frames, source.motion.fps, fps)
-            bridged = to_body(source.bridged(), body)
-            seen = observed.astype(float)
-            observed = _resample_frames(seen, t) > 1 - 1e-9  # both frames around observed
-            view = resample(bridged, fps)
-        elif abs(source.motion.fps - fps) > SAME_FPS:
-            view = view.replace(fps=fps)
-        return cls(source, Observation(view, observed))
+            observed = _resample_frames(observed.astype(float), t) > 1 - 1e-9  # both frames around observed
+            view = resample(to_body(bridged, body), fps)
+        else:
+            view = resample(to_body(source.motion, body), fps)  # at most a new rate for one frame
+        return cls(source, Observation(view, observed), bridged)
 
     def joint(self, j: int) -> int:
         """The view's index of the take's joint ``j`` (the body root or below it)."""
@@ -205,9 +210,8 @@ class ModelView:
     @property
     def changed(self) -> bool:
         """The view differs from the take: another skeleton or another rate."""
-        return (
-            self.observation.skeleton is not self.source.skeleton or self.observation.n_frames != self.source.n_frames
-        )
+        view, source = self.observation, self.source
+        return view.skeleton is not source.skeleton or abs(view.motion.fps - source.motion.fps) > SAME_FPS
 
     def restore(self, result: CleanResult, keep_observed: bool = False) -> CleanResult:
         """A result on the view back on the take: its frames, its skeleton, its rate.
@@ -229,7 +233,7 @@ class ModelView:
             t = np.interp(t, _frame_times(source.n_frames, fps_take, fps_view), np.arange(view.n_frames))
         motion = result.motion.replace(fps=fps_take).with_channels(_resample_frames(_unwrapped(result.motion), t))
         if source.skeleton.body_root:
-            motion = from_body(motion, source.bridged())
+            motion = from_body(motion, self.bridged)
         X = rewrap_angles(motion.channels, source)
         if keep_observed:
             mask = source.channel_observed
@@ -253,8 +257,8 @@ class ModelView:
             out = np.zeros((F, skeleton.n_joints) + value.shape[2:])
             out[:, body_joints(skeleton)] = value
             return out
-        if value.ndim == 2 and value.shape[1] == 3 + 3 * body.n_joints:
-            out = np.zeros((F, 3 + 3 * skeleton.n_joints + 3 * len(skeleton.translated)))
+        if value.ndim == 2 and value.shape[1] == channel_count(body):
+            out = np.zeros((F, channel_count(skeleton)))
             b = skeleton.body_root
             t0 = angle_slice(skeleton).stop + 3 * skeleton.translated.index(b)
             out[:, t0 : t0 + 3] = value[:, :3]
