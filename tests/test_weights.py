@@ -86,3 +86,17 @@ def test_a_manifest_that_is_not_one_is_refused_by_name(tmp_path):
     save_weights(tmp_path, {"w": np.zeros(3)}, {"engine": "demo"})
     with pytest.raises(EngineError, match="not a weights manifest"):
         load_weights(tmp_path)
+
+
+def test_weights_that_do_not_say_their_frame_rate_are_refused(tmp_path):
+    import shutil
+
+    from workbench import registry
+
+    folder = tmp_path / "w"
+    shutil.copytree(registry.create("mssa").default_weights_dir() / "cmu", folder)
+    manifest = json.loads((folder / "manifest.json").read_text())
+    del manifest["fps"]
+    (folder / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(EngineError, match="does not say the frame rate they were trained at; retrain them"):
+        registry.create(f"mssa:weights={folder}")

@@ -659,7 +659,10 @@ class Engine:
             )
         fps = manifest.get("fps")
         if not isinstance(fps, (int, float)) or not fps > 0:
-            raise EngineError(f"{folder}: the weights' manifest does not say the frame rate they were trained at")
+            raise EngineError(
+                f"{folder}: the weights' manifest does not say the frame rate they were trained at; "
+                "retrain them (`workbench train SPEC --out FOLDER`)"
+            )
         asked, self.params = self.params, self.weights_params(manifest, folder)
         try:
             self.load_state_arrays(arrays, manifest)
