@@ -230,6 +230,17 @@ def test_train_on_the_studio_takes_records_their_rate_skeleton_and_terms(tmp_pat
     assert "CC BY-NC" in json.dumps(manifest["training"]["datasets"])
 
 
+def test_train_on_a_share_of_the_split_records_the_clips_it_used(tmp_path, clips, capsys):
+    from workbench.data import select, share
+
+    out = tmp_path / "kl"
+    assert main(["train", "kalman-learned", "--dataset", "cmu", "--share", "25", "--out", str(out)]) == 0
+    used = json.loads((out / "manifest.json").read_text())["training"]["clips"]
+    assert used == [c.id for c in share(select(clips, "train", dataset="cmu"), 25)]
+    assert main(["train", "kalman-learned", "--share", "0", "--out", str(tmp_path / "x")]) == 2
+    assert "--share is a percentage in (0, 100]" in capsys.readouterr().err and not (tmp_path / "x").exists()
+
+
 def test_per_clip_marks_a_metric_no_seed_defines():
     from workbench.evaluate import BenchResult
 

@@ -2,7 +2,15 @@ import json
 
 import pytest
 
-from workbench.data import DataNotFoundError, catalogue, find_clip, find_data_root, select, without_reference_frame
+from workbench.data import (
+    DataNotFoundError,
+    catalogue,
+    find_clip,
+    find_data_root,
+    select,
+    share,
+    without_reference_frame,
+)
 from workbench.data.catalogue import SPLITS_DIR
 
 
@@ -20,6 +28,21 @@ def test_split_holds_out_whole_subjects(clips):
     assert {c.category for c in test} == {"walk", "jog", "run", "jump", "other"}
     split = json.loads((SPLITS_DIR / "cmu.json").read_text())
     assert sorted(split["test"]) == sorted(c.id.removeprefix("cmu/") for c in test)
+
+
+def test_a_share_of_the_training_clips_is_fixed_nested_and_rounded_up(clips):
+    """Learning curves train on 25 and 50 % of a split: the same clips on every machine,
+    the smaller share inside the larger, in catalogue order."""
+    train = select(clips, "train", dataset="cmu")
+    quarter, half = share(train, 25), share(train, 50)
+    assert len(quarter) == -(-len(train) // 4) and len(half) == -(-len(train) // 2)
+    assert {c.id for c in quarter} < {c.id for c in half} < {c.id for c in train}
+    assert [c.id for c in half] == [c.id for c in train if c in half]
+    assert share(list(reversed(train)), 25) == list(reversed(quarter))
+    assert share(train, 100) == train and len(share(train, 0.1)) == 1
+    for bad in (0, -5, 100.5):
+        with pytest.raises(ValueError, match="percentage"):
+            share(train, bad)
 
 
 def test_reference_frame_is_dropped(clips):

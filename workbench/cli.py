@@ -316,7 +316,7 @@ COMMITTED_WEIGHTS_DATASET = "cmu"
 
 def cmd_train(args) -> int:
     from . import registry
-    from .data import catalogue, find_data_root, select
+    from .data import catalogue, find_data_root, select, share
     from .engine import WEIGHTS_OPTION
     from .training import train_engine
 
@@ -345,6 +345,10 @@ def cmd_train(args) -> int:
     train = select(clips, "train") or select(clips, None)
     if not train:
         raise UserError(f"no training clips under {root}" + (f" in dataset {dataset!r}" if dataset else ""))
+    if args.share is not None:
+        if not 0 < args.share <= 100:
+            raise UserError(f"--share is a percentage in (0, 100], not {args.share:g}")
+        train = share(train, args.share)
     first = train[0].load()
     engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
     loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
@@ -499,6 +503,12 @@ def build_parser() -> argparse.ArgumentParser:
         sp,
         f"train on this dataset's training split (default: {COMMITTED_WEIGHTS_DATASET} where the data "
         "root has the splits of several)",
+    )
+    sp.add_argument(
+        "--share",
+        type=float,
+        metavar="PCT",
+        help="train on this percentage of the training clips (for learning curves; a fixed, nested choice)",
     )
     sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias)")
     sp.add_argument(

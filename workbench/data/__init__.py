@@ -8,6 +8,7 @@ from .catalogue import (
     find_clip,
     has_reference_frame,
     select,
+    share,
     without_reference_frame,
 )
 from .roots import DataNotFoundError, find_data_root
@@ -19,6 +20,7 @@ __all__ = [
     "dataset_terms",
     "find_clip",
     "select",
+    "share",
     "has_reference_frame",
     "without_reference_frame",
     "find_data_root",

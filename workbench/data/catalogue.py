@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import csv
 import fnmatch
+import hashlib
 import json
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -172,6 +174,17 @@ def select(
     if pattern:
         out = [c for c in out if fnmatch.fnmatch(c.id, pattern) or fnmatch.fnmatch(c.id, f"*{pattern}*")]
     return out
+
+
+def share(clips: list[Clip], percent: float) -> list[Clip]:
+    """``percent`` (0-100] of ``clips``, rounded up to whole clips, in catalogue order. The
+    choice is fixed by the clip ids alone (the clips whose SHA-256 of the id is smallest), so it
+    is the same on every machine and nested: a 25 % share lies inside the 50 % share."""
+    if not 0 < percent <= 100:
+        raise ValueError(f"a share is a percentage in (0, 100], not {percent:g}")
+    n = math.ceil(len(clips) * percent / 100 - 1e-9)
+    chosen = set(sorted((c.id for c in clips), key=lambda i: hashlib.sha256(i.encode()).hexdigest())[:n])
+    return [c for c in clips if c.id in chosen]
 
 
 def find_clip(name: str, root: str | Path | None = None) -> Clip:
