@@ -1,6 +1,6 @@
 """``workbench``: the command line.
 
-Subcommands: data, engines, corrupt, clean, bench, train, and the app's gui (also
+Subcommands: data, engines, skeleton, corrupt, clean, bench, train, and the app's gui (also
 ``workbench`` with no arguments), report, screenshots. Every user error (bad file, bad
 spec, missing data or weights) prints one clear line on stderr and exits with status 2;
 nothing is half-written.
@@ -25,12 +25,13 @@ class UserError(Exception):
 
 
 def _user_errors() -> tuple[type, ...]:
+    from .core.humanoid import HumanoidError
     from .corruption import CorruptionSpecError
     from .data import DataNotFoundError
     from .engine import EngineError
     from .io import MotionFileError
 
-    return (UserError, MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, KeyError)
+    return (UserError, MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, HumanoidError, KeyError)
 
 
 def _message(err: BaseException) -> str:
@@ -116,6 +117,20 @@ def _read(path: str):
     from .io import read_motion
 
     return read_motion(path)
+
+
+def cmd_skeleton(args) -> int:
+    from .core.humanoid import map_humanoid
+    from .io.mapping import read_mapping
+
+    motion = _read(args.take)
+    s = motion.skeleton
+    print(
+        f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
+    )
+    mapping = map_humanoid(s, read_mapping(args.mapping) if args.mapping else None)
+    print(mapping.describe())
+    return 0
 
 
 def cmd_corrupt(args) -> int:
@@ -450,6 +465,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("engines", help="list the registered engines and their parameters")
     sp.set_defaults(func=cmd_engines)
+
+    sp = sub.add_parser("skeleton", help="a take's skeleton and the canonical humanoid joints found on it")
+    sp.add_argument("take", help="a BVH/AMC take")
+    sp.add_argument("--mapping", metavar="FILE", help='JSON pinning canonical joints, e.g. {"neck": "Neck1"}')
+    sp.set_defaults(func=cmd_skeleton)
 
     sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
     sp.add_argument("input")
