@@ -316,6 +316,38 @@ def test_clean_picks_the_weights_of_the_take_s_skeleton_with_no_flag(tmp_path, d
     assert 0 < np.abs(cleaned.channels - raw.channels).max() < 30
 
 
+def test_clean_says_which_weights_it_used(tmp_path, data_root, capsys):
+    take = data_root / "bandai" / "walk" / "dataset-1_walk_active_001.bvh"
+    assert main(["clean", str(take), "-o", str(tmp_path / "a.bvh"), "--engine", "kalman-learned"]) == 0
+    line = capsys.readouterr().out
+    assert "(skeleton-specific weights " in line and "kalman-learned/bandai)" in line, line
+
+
+def test_train_pools_the_skeletons_a_universal_variant_maps_and_records_both_terms(tmp_path, data_root, capsys):
+    """cae:universal=true trains on the CMU and Bandai train splits together (one tiny
+    epoch here); the plain cae keeps the first clip's skeleton only, and says how to pool."""
+    out = tmp_path / "u"
+    spec = "cae:universal=true,frames_per_epoch=512,window_frames=64,batch_size=4,pose_copies=0"
+    assert main(["train", spec, "--dataset", "cmu,bandai", "--share", "5", "--epochs", "1", "--out", str(out)]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["skeleton_signature"] == "canonical humanoid" and manifest["fps"] == 120.0
+    assert [d["name"] for d in manifest["training"]["datasets"]] == ["bandai", "cmu"]
+    assert "CC BY-NC" in json.dumps(manifest["training"]["datasets"])
+    kick, cleaned = data_root / "cmu-daz" / "kick" / "10_03.bvh", tmp_path / "k.bvh"  # the unseen skeleton
+    engine = f"{spec},weights={out}"
+    assert main(["clean", str(kick), "-o", str(cleaned), "--engine", engine]) == 0
+    assert f"(universal weights {out.resolve()})" in capsys.readouterr().out
+    assert read_bvh(cleaned).skeleton.signature() == read_bvh(kick).skeleton.signature()
+    mapping = tmp_path / "map.json"
+    mapping.write_text('{"left_thigh": null}')
+    refused = tmp_path / "no.bvh"
+    assert main(["clean", str(kick), "-o", str(refused), "--engine", engine, "--mapping", str(mapping)]) == 2
+    assert "left_thigh" in capsys.readouterr().err and not refused.exists()
+    plain = "cae:frames_per_epoch=512,window_frames=64,batch_size=4,pose_copies=0"
+    assert main(["train", plain, "--dataset", "cmu,bandai", "--share", "5", "--epochs", "1", "--out", str(out)]) == 0
+    assert "`cae:universal=true` trains on several" in capsys.readouterr().err
+
+
 def test_clean_writes_a_t_pose_frame_0_back_untouched(tmp_path, data_root, capsys):
     from workbench import registry
     from workbench.core.motion import Observation

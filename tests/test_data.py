@@ -144,3 +144,9 @@ def test_the_studio_split_holds_out_whole_styles_and_validates_on_training_style
     # every content and style pair of the training styles is still trained on
     pairs = lambda group: {(c.category, c.style) for c in group}  # noqa: E731
     assert pairs(by["validation"]) <= pairs(by["train"])
+
+
+def test_several_datasets_are_selected_by_names_joined_with_commas(clips):
+    pooled = select(clips, "train", dataset="cmu, bandai")
+    assert pooled == [c for c in select(clips, "train") if c.dataset in ("cmu", "bandai")]
+    assert {c.dataset for c in pooled} == {"cmu", "bandai"}

@@ -186,8 +186,9 @@ def _clean_take(engine, source: Path, output: Path, mask: str | None, keep_refer
     if reference is not None:
         cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
     write_bvh(output, cleaned)
+    weights = f" ({engine.weights_used_})" if engine.weights_used_ else ""
     print(
-        f"wrote {output}: {motion.n_frames} frames cleaned by {engine.spec} in {dt:.2f} s "
+        f"wrote {output}: {motion.n_frames} frames cleaned by {engine.spec}{weights} in {dt:.2f} s "
         f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled"
     )
 
@@ -198,8 +199,15 @@ def cmd_clean(args) -> int:
     from .io import MOTION_SUFFIXES
 
     source, output = Path(args.input), Path(args.output)
+    engine = registry.create(args.engine)
+    if args.mapping:
+        from .io.mapping import read_mapping
+
+        overrides = read_mapping(args.mapping)
+        for stage in getattr(engine, "stages", [engine]):
+            stage.humanoid_overrides = overrides
     if not source.is_dir():
-        _clean_take(registry.create(args.engine), source, output, args.mask, args.keep_reference)
+        _clean_take(engine, source, output, args.mask, args.keep_reference)
         return 0
     if args.mask:
         raise UserError("--mask is one take's mask; in a folder each take's own INPUT.mask.json is used")
@@ -212,7 +220,6 @@ def cmd_clean(args) -> int:
     ]
     if not takes:
         raise UserError(f"{source} holds no .bvh or .amc file")
-    engine = registry.create(args.engine)
     failed = 0
     for path in takes:
         try:
@@ -327,12 +334,15 @@ def cmd_bench(args) -> int:
 #: the dataset the committed weights were trained on: ``train``'s default where a data
 #: root holds the training splits of several
 COMMITTED_WEIGHTS_DATASET = "cmu"
+#: the data sets a universal variant's committed weights pool (cmu-daz stays out: the unseen skeleton)
+COMMITTED_UNIVERSAL_DATASETS = "cmu,bandai"
 
 
 def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, find_data_root, select, share
     from .engine import WEIGHTS_OPTION
+    from .engine.base import UNIVERSAL
     from .training import train_engine
 
     spec = args.engine
@@ -350,10 +360,10 @@ def cmd_train(args) -> int:
     clips = catalogue(root)
     dataset = args.dataset
     if dataset is None and len({c.dataset for c in select(clips, "train")}) > 1:
-        dataset = COMMITTED_WEIGHTS_DATASET
+        dataset = COMMITTED_UNIVERSAL_DATASETS if engine.skeleton_agnostic else COMMITTED_WEIGHTS_DATASET
         print(
             f"note: training on the {dataset} training split, as the committed weights were "
-            "(--dataset NAME trains on another)",
+            "(--dataset NAME trains on another; NAME,NAME pools several)",
             file=sys.stderr,
         )
     clips = select(clips, dataset=dataset)
@@ -368,9 +378,11 @@ def cmd_train(args) -> int:
     engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
     loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
     layout = first.skeleton.signature()
-    used = [(c, m) for c, m in loaded if m.skeleton.signature() == layout]
+    used = [(c, m) for c, m in loaded if engine.skeleton_agnostic or m.skeleton.signature() == layout]
     if len(used) < len(loaded):
-        print(f"note: training on the {len(used)} clips of the first clip's skeleton only", file=sys.stderr)
+        universal = f"{engine.info.name}:{UNIVERSAL}=true"
+        pooled = f" (`{universal}` trains on several)" if hasattr(engine.params, UNIVERSAL) else ""
+        print(f"note: training on the {len(used)} clips of the first clip's skeleton only{pooled}", file=sys.stderr)
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.variant)
@@ -395,7 +407,7 @@ def cmd_train(args) -> int:
     if args.promote:
         import shutil
 
-        dest = engine.default_weights_dir() / used[0][0].dataset
+        dest = engine.default_weights_dir() / "+".join(dict.fromkeys(c.dataset for c, _ in used))
         dest.mkdir(parents=True, exist_ok=True)
         for f in out.iterdir():
             shutil.copy2(f, dest / f.name)
@@ -490,6 +502,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--keep-reference",
         action="store_true",
         help="clean a T-pose frame 0 with the motion (default: write it back untouched)",
+    )
+    sp.add_argument(
+        "--mapping",
+        metavar="FILE",
+        help="JSON pinning canonical joints for universal weights, as `workbench skeleton` takes it",
     )
     sp.set_defaults(func=cmd_clean)
 

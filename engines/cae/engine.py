@@ -47,8 +47,9 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import hole_length, interpolate_gaps
-from workbench.core.kinematics import forward_kinematics, inverse_kinematics, local_rotations, short_lever_joints
+from workbench.core.kinematics import forward_kinematics, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
+from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, trained, training
 from workbench.engine.signal import bridge_gaps, normalized_gaussian, rewrap_angles
 from workbench.engine.smoothing import (
@@ -60,12 +61,13 @@ from workbench.engine.smoothing import (
     smoothing_ratio,
 )
 from workbench.engine.threads import one_blas_thread
+from workbench.engine.view import body_skeleton
 
+from .bodies import CANONICAL_LAYOUT, CanonicalJoints, OwnJoints
 from .representation import (
     Layout,
     decode,
     encode,
-    heading,
     image_mask,
     mirror_rows,
     pad_time,
@@ -99,7 +101,8 @@ class TrainingParams:
     ``mirror``, half the windows mirrored left/right; ``input_noise``, Gaussian noise
     of this standard deviation (normalised units) on the known input entries.
     ``sampling`` ("clips" or "frames") and ``input_fill`` ("linear" or "zero"): see
-    :mod:`.training`. ``ema_decay``: the weights kept are the exponential moving average
+    :class:`.training.WindowSampler` (pooled skeletons, as a universal variant trains on,
+    are drawn equally often each). ``ema_decay``: the weights kept are the exponential moving average
     over the steps with this decay per step (0: the last step's). ``bf16``: bf16 autocast
     (training and inference).
     ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
@@ -116,7 +119,11 @@ class TrainingParams:
     inside a hole shorter than this the network's fill is blended with the
     constant-velocity smoother's (0: none; all three: the module docstring);
     ``output_sigma_frames``: the network's completion is smoothed over time by a
-    Gaussian of this std in frames before it is used (0: none; the module docstring)."""
+    Gaussian of this std in frames before it is used (0: none; the module docstring).
+    ``universal``: the image holds the canonical humanoid instead of the take's joints
+    (:mod:`.bodies`), so the weights train on several skeletons together and clean any
+    that maps onto it; a plain engine with no weights for a take's skeleton cleans it
+    with the committed universal weights (:meth:`Engine.universal_twin`)."""
 
     epochs: int = training(120)
     frames_per_epoch: int = training(100_000)
@@ -133,6 +140,7 @@ class TrainingParams:
     pose_copies: int = training(0)
     pose_jitter_deg: float = training(0.0)
     input_fill: str = trained("linear")
+    universal: bool = trained(False)
     sampling: str = training("clips")
     seed: int = training(0)
     bf16: bool = True
@@ -203,30 +211,43 @@ class ConvAutoencoderEngine(Engine):
         from .training import WindowSampler, train
 
         p = self.params
-        skeleton = motions[0].skeleton
-        layout = Layout.from_skeleton(skeleton)
+        layout = CANONICAL_LAYOUT if p.universal else Layout.from_skeleton(motions[0].skeleton)
         net = self.build_network(layout.n_rows)
         if p.window_frames % net.time_multiple:
             raise EngineError(f"window_frames must be a multiple of {net.time_multiple}, got {p.window_frames}")
-        varies = np.concatenate([m.angles_deg for m in motions]).std(axis=0) > 1e-9  # (J, 3) per angle
-        varies[0] = False
-        constant = np.flatnonzero(~varies.any(axis=1))
-        constant = constant[constant > 0]
-        maskable = np.array([j for j in range(1, skeleton.n_joints) if j not in constant and skeleton.has_rotation[j]])
-        rest = np.zeros(skeleton.n_joints)  # height above the root in the rest pose
-        for j, parent in enumerate(skeleton.parents):
-            rest[j] = rest[parent] + skeleton.offsets[j, 1] if parent >= 0 else 0.0
-        jitter = varies & (rest > 0)[:, None]  # upper-body angles: the feet keep their contacts
-        images = []
+        images, groups, constant, maskable = [], [], np.zeros(0, int), np.arange(1, layout.n_joints)
         rng = np.random.default_rng(p.seed)
-        for m in motions:
-            for copy in range(1 + p.pose_copies):
-                angles = m.angles_deg.copy()
-                if copy:  # the same offsets in every frame: other, still smooth poses
-                    angles += rng.normal(0.0, p.pose_jitter_deg, jitter.shape) * jitter
-                P, R = forward_kinematics(skeleton, m.root_positions, angles)
-                images.append(encode(layout, P, heading(R[:, 0])))
-        mirror = mirror_rows(layout, skeleton.names) if p.mirror else None
+        for group, motions_of_one in enumerate(_by_skeleton(motions)):
+            skeleton = motions_of_one[0].skeleton
+            imaging = self.imaging(skeleton, layout)
+            if p.universal and (lacking := imaging.lacking()):
+                raise EngineError(
+                    f"engine {self.info.name!r}: a universal variant trains on skeletons with every canonical "
+                    f"joint; {motions_of_one[0].name or 'a training take'} has none for {', '.join(lacking)} "
+                    "(pin them with a mapping file, or leave these takes out)"
+                )
+            varies = np.concatenate([m.angles_deg for m in motions_of_one]).std(axis=0) > 1e-9  # (J, 3) per angle
+            varies[0] = False
+            if not p.universal:  # joints that never move are always known; the others can go missing
+                constant = np.flatnonzero(~varies.any(axis=1))
+                constant = constant[constant > 0]
+                maskable = np.array(
+                    [j for j in range(1, skeleton.n_joints) if j not in constant and skeleton.has_rotation[j]]
+                )
+            rest = np.zeros(skeleton.n_joints)  # height above the root in the rest pose
+            for j, parent in enumerate(skeleton.parents):
+                rest[j] = rest[parent] + skeleton.offsets[j, 1] if parent >= 0 else 0.0
+            jitter = varies & (rest > 0)[:, None]  # upper-body angles: the feet keep their contacts
+            for m in motions_of_one:
+                for copy in range(1 + p.pose_copies):
+                    angles = m.angles_deg.copy()
+                    if copy:  # the same offsets in every frame: other, still smooth poses
+                        angles += rng.normal(0.0, p.pose_jitter_deg, jitter.shape) * jitter
+                    P, R = forward_kinematics(skeleton, m.root_positions, angles)
+                    P = imaging.positions(P)
+                    images.append(encode(layout, P, imaging.heading(P, R)))
+                    groups.append(group)
+        mirror = mirror_rows(layout, imaging.names) if p.mirror else None
         pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
         # float32 as saved, so a loaded engine computes exactly what the fitted one does
         mean = pool.mean(axis=0).astype(np.float32).astype(float)
@@ -246,6 +267,7 @@ class ConvAutoencoderEngine(Engine):
             p.input_fill,
             p.sampling,
             rng,
+            groups,
         )
         batches = max(1, p.frames_per_epoch // (p.batch_size * p.window_frames))
         log = train(
@@ -340,15 +362,35 @@ class ConvAutoencoderEngine(Engine):
         """Fill the gaps of (and denoise) ``observation``; ``constraints`` maps a joint index
         to (frames (n,), world positions (n, 3) in file units) that guide the network.
         The take is cleaned in the engine's view of it (:meth:`model_view`: body-rooted,
-        at the rate of the weights) and the result put back on it."""
+        at the rate of the weights) and the result put back on it; a take whose skeleton
+        has no committed weights of its own by the universal variant's committed weights
+        (:meth:`Engine.universal_twin`; :attr:`weights_used_` says which were used)."""
+        twin = self.universal_twin(body_skeleton(observation.skeleton))
+        if twin is not None:  # no weights for this skeleton: the universal ones
+            result = twin.clean(observation, constraints=constraints)
+            self.weights_used_ = twin.weights_used_
+            return result
         view = self.model_view(observation)
         if constraints:
             constraints = {view.joint(j): (view.frames(f), P) for j, (f, P) in constraints.items()}
         return view.restore(self._clean(view.observation, constraints), self.params.keep_observed)
 
+    def imaging(self, skeleton: Skeleton, layout: Layout) -> OwnJoints | CanonicalJoints:
+        """The body the image of a take of ``skeleton`` (a body view) holds (:mod:`.bodies`):
+        the canonical humanoid for a universal variant, else the take's own joints in
+        ``layout``.
+
+        Raises
+        ------
+        EngineError
+            A universal variant and a skeleton that does not map onto the humanoid.
+        """
+        return CanonicalJoints(self.humanoid(skeleton)) if self.params.universal else OwnJoints(skeleton, layout)
+
     def _clean(self, observation: Observation, constraints: Constraints | None) -> CleanResult:
         skeleton = observation.skeleton
         layout = self.layout_
+        imaging = self.imaging(skeleton, layout)
         linear = bridge_gaps(observation)
         holes = self.bridged_holes(observation, linear)
         seen, bridge = observation.channel_observed, channel_mask(holes, skeleton)
@@ -358,15 +400,16 @@ class ConvAutoencoderEngine(Engine):
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
         ref_local = local_rotations(skeleton, ref)
         P, R = forward_kinematics(skeleton, bridged[:, :3], ref, local=ref_local)
-        theta = heading(R[:, 0])
-        ground = P[:, 0] * np.array([1.0, 0.0, 1.0])
+        image_positions = imaging.positions(P)
+        theta = imaging.heading(image_positions, R)
+        ground = image_positions[:, 0] * np.array([1.0, 0.0, 1.0])
         observed = observation.observed | holes
         observed[:, self.constant_] = True
-        known = ~position_unknown(observed, layout.parents)
+        known = imaging.known(~position_unknown(observed, skeleton.parents))
         if self.params.anchor:
             ground, theta = anchored_trajectory(ground, theta, known[:, 0])
-        image, mask = encode(layout, P, theta, ground), image_mask(layout, known)
-        mirror = mirror_rows(layout, skeleton.names) if self.params.views > 1 else None
+        image, mask = encode(layout, image_positions, theta, ground), image_mask(layout, known)
+        mirror = mirror_rows(layout, imaging.names) if self.params.views > 1 else None
         net_out = self.complete(image, mask, mirror, self.params.views)
         out = self.low_pass(net_out)
         path, theta = trajectory(out, known[:, 0], ground, theta)
@@ -377,7 +420,7 @@ class ConvAutoencoderEngine(Engine):
             ground = path
         exact = mask.copy() if self.params.keep_observed else np.zeros_like(mask)
         if constraints:  # a second pass, on the first one's trajectory
-            image, mask, constrained = self._constrain(image, mask, constraints, ground, theta)
+            image, mask, constrained = self._constrain(imaging, image, mask, constraints, ground, theta)
             exact |= constrained
             net_out = self.complete(image, mask, mirror, self.params.views)
             out = self.low_pass(net_out)
@@ -388,15 +431,20 @@ class ConvAutoencoderEngine(Engine):
                 out = self.blend_short_holes(out, mask)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         short, frames, ref, ref_local = self._ik_reference(observation, bridged, smoothed, P, ref, ref_local)
-        root, angles, translations = inverse_kinematics(
-            skeleton, target, ref, reference_local=ref_local, reference_joints=short, reference_frames=frames
+        root, angles, translations = imaging.solve(
+            target,
+            bridged[:, :3],
+            ref,
+            reference_local=ref_local,
+            reference_joints=short,
+            reference_frames=frames,
         )
         solved = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations)
         channels = rewrap_angles(solved.channels, observation)
         if self.params.keep_observed:
             given = observation.channel_observed
             channels[given] = observation.motion.channels[given]
-        return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw})
+        return CleanResult(observation.motion.with_channels(channels), {"raw_positions": imaging.targets(raw, P)})
 
     def bridged_holes(self, observation: Observation, channels: np.ndarray) -> np.ndarray:
         """The holes (F, J) that count as observed, bridged by the constant-velocity
@@ -493,25 +541,41 @@ class ConvAutoencoderEngine(Engine):
         return out
 
     def _constrain(
-        self, image: np.ndarray, mask: np.ndarray, constraints: Constraints, ground: np.ndarray, theta: np.ndarray
+        self,
+        imaging: OwnJoints | CanonicalJoints,
+        image: np.ndarray,
+        mask: np.ndarray,
+        constraints: Constraints,
+        ground: np.ndarray,
+        theta: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Image, mask and the constrained entries (F, H), with the constrained positions
-        entered as known entries in the body frame of the trajectory (ground (F, 3),
-        theta (F,))."""
+        (file units) entered as known entries of their image joints (``imaging``) in the
+        body frame of the trajectory (ground (F, 3), theta (F,), image units)."""
         image, mask, constrained = image.copy(), mask.copy(), np.zeros_like(mask)
         for joint, (frames, positions) in constraints.items():
-            j = self.layout_.source[joint] if 0 <= joint < self.layout_.n_joints else -1
+            j = imaging.image_joint(joint)
             if j <= 0:
                 raise EngineError(
                     f"engine {self.info.name!r}: cannot constrain joint {joint}; give a non-root "
-                    f"joint index below {self.layout_.n_joints}"
+                    f"joint index below {imaging.skeleton.n_joints}"
+                    + (" that maps onto the canonical humanoid" if self.params.universal else "")
                 )
             frames = np.asarray(frames, int)
-            positions = np.asarray(positions, float).reshape(len(frames), 3)
+            positions = np.asarray(positions, float).reshape(len(frames), 3) * imaging.scale
             rows = self.layout_.rows(j)
             image[frames, rows] = turn_y(positions - ground[frames], -theta[frames])
             constrained[frames, rows] = True
         return image, mask | constrained, constrained
+
+
+def _by_skeleton(motions: Sequence[Motion]) -> list[list[Motion]]:
+    """The motions grouped by skeleton layout, the groups and the motions in each in the
+    order they come."""
+    groups: dict[str, list[Motion]] = {}
+    for m in motions:
+        groups.setdefault(m.skeleton.signature(), []).append(m)
+    return list(groups.values())
 
 
 def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -68,9 +68,12 @@ def gap_mean_frames(epoch: int, curriculum_epochs: int) -> int:
 class WindowSampler:
     """Batches of windows (B, T, H) from raw training images (each (F_i, H)): played at a
     random speed, scaled, mirrored, normalised, with holes and input noise. A window
-    comes from image i with probability proportional to its length F_i, so every
-    captured frame is drawn equally often; images too short for a window are reflected
-    at their end (:func:`representation.pad_time`), as at inference."""
+    comes from image i with probability proportional to its length F_i (``sampling``
+    "frames": every captured frame is drawn equally often) or alike for every image
+    ("clips"); with ``groups`` (one label per image: its skeleton layout) each group is
+    drawn equally often, its images as ``sampling`` says, so a data set of many takes does
+    not drown a smaller one. Images too short for a window are reflected at their end
+    (:func:`representation.pad_time`), as at inference."""
 
     def __init__(
         self,
@@ -88,10 +91,15 @@ class WindowSampler:
         input_fill: str,
         sampling: str,
         rng: np.random.Generator,
+        groups: Sequence[int] | None = None,
     ) -> None:
         self.max_speed = 1 + time_scale_pct / 100
         span = int(math.ceil((window_frames - 1) * self.max_speed)) + 2
         self.weights = np.array([im.shape[0] if sampling == "frames" else 1 for im in images], float)
+        if groups is not None:
+            labels = np.asarray(groups)
+            for g in np.unique(labels):
+                self.weights[labels == g] /= self.weights[labels == g].sum()
         self.weights /= self.weights.sum()
         self.images = [pad_time(im, im, span)[0] for im in images]
         self.lengths = np.array([im.shape[0] for im in self.images])

@@ -156,7 +156,9 @@ class EnginePanel(QGroupBox):
             return ""
         if run is None:
             return "running…"
-        return f"{run.seconds:.2f} s" if isinstance(run, EngineRun) else "failed"
+        if not isinstance(run, EngineRun):
+            return "failed"
+        return f"{run.seconds:.2f} s" + (f", {run.weights_kind}" if run.weights_kind else "")
 
     def refresh(self) -> None:
         s = self.session
@@ -169,7 +171,7 @@ class EnginePanel(QGroupBox):
             item.setFlags(Qt.ItemIsSelectable | Qt.ItemIsUserCheckable | Qt.ItemIsEnabled)
             item.setCheckState(Qt.Checked if spec in s.specs else Qt.Unchecked)
             run = s.runs.get(spec)
-            item.setToolTip(run if isinstance(run, str) else "")
+            item.setToolTip(run if isinstance(run, str) else getattr(run, "weights", None) or "")
             self.list.addItem(item)
             if spec == s.current:
                 self.list.setCurrentItem(item)

@@ -50,7 +50,7 @@ def scores_text(take: Take, runs: list[EngineRun]) -> str:
         gap = f", in gaps {sc['gap_mpjpe_cm']:.2f} cm" if "gap_mpjpe_cm" in sc else ""
         lines.append(
             f"{r.spec}: joint error {sc['mpjpe_cm']:.2f} cm{gap}, angles {sc['rms_angle_deg']:.2f}° RMS, "
-            f"{r.seconds:.2f} s"
+            f"{r.seconds:.2f} s" + (f" ({r.weights_kind})" if r.weights_kind else "")
         )
     return "\n".join(lines)
 

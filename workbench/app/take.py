@@ -191,13 +191,21 @@ def open_take(source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) 
 @dataclass(frozen=True)
 class EngineRun:
     """One engine's result on a take: the cleaned track, its diagnostics (arrays with the
-    frame axis first) and the time its clean took (s; loading the engine and its weights
-    not counted, as in ``workbench clean``)."""
+    frame axis first), the time its clean took (s; loading the engine and its weights
+    not counted, as in ``workbench clean``) and which weights it used
+    (:attr:`workbench.engine.Engine.weights_used_`: "universal weights FOLDER" or
+    "skeleton-specific weights FOLDER"; None for an engine with none)."""
 
     spec: str
     track: Track
     diagnostics: Mapping[str, np.ndarray] = field(default_factory=dict)
     seconds: float = 0.0
+    weights: str | None = None
+
+    @property
+    def weights_kind(self) -> str | None:
+        """The first two words of :attr:`weights`: universal or skeleton-specific weights (None: none)."""
+        return " ".join(self.weights.split()[:2]) if self.weights else None
 
     @property
     def filter_sigma_frames(self) -> np.ndarray | None:
@@ -221,7 +229,7 @@ def run_engine(spec: str, take: Take) -> EngineRun:
     result = engine.clean(take.observation)
     seconds = time.perf_counter() - t0
     reference = take.truth if take.truth is not None else take.noisy.motion  # else: how far it moved
-    return EngineRun(spec, Track.of(result.motion, reference), dict(result.diagnostics), seconds)
+    return EngineRun(spec, Track.of(result.motion, reference), dict(result.diagnostics), seconds, engine.weights_used_)
 
 
 def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[int]:
@@ -257,6 +265,7 @@ def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str
         run = runs.get(spec)
         title = f"cleaned\n{spec}"
         if isinstance(run, EngineRun):
+            title += f"\n{run.weights_kind}" if run.weights_kind else ""
             panes.append(Pane(title, run.track.points, run.track.errors_cm, ghost=ghost))
         else:
             note = "running..." if run is None else "failed:\n" + textwrap.fill(run, 34)

@@ -164,13 +164,14 @@ def catalogue(root: str | Path | None = None) -> list[Clip]:
 def select(
     clips: list[Clip], split: str | None = None, dataset: str | None = None, pattern: str | None = None
 ) -> list[Clip]:
-    """Filter clips: ``split`` one of :data:`SPLITS` or "all", ``dataset`` name,
-    ``pattern`` a glob on the clip id (``cmu/walk/*``)."""
+    """Filter clips: ``split`` one of :data:`SPLITS` or "all", ``dataset`` a name or
+    several joined by commas (``cmu,bandai``), ``pattern`` a glob on the clip id (``cmu/walk/*``)."""
     out = clips
     if split and split != "all":
         out = [c for c in out if c.split == split]
     if dataset:
-        out = [c for c in out if c.dataset == dataset]
+        names = {name.strip() for name in dataset.split(",")}
+        out = [c for c in out if c.dataset in names]
     if pattern:
         out = [c for c in out if fnmatch.fnmatch(c.id, pattern) or fnmatch.fnmatch(c.id, f"*{pattern}*")]
     return out

@@ -47,6 +47,10 @@ SPACES = frozenset({"angles", "positions"})
 #: the field-metadata key of a parameter's role, and the three roles (module docstring)
 ROLE = "role"
 TRAINED, TRAINING, INFERENCE = "trained", "training", "inference"
+#: the trained parameter of an engine's skeleton-agnostic variant (``cae:universal=true``)
+UNIVERSAL = "universal"
+#: the skeleton signature such a variant's weights record: they model the canonical humanoid
+HUMANOID_SIGNATURE = "canonical humanoid"
 
 
 def trained(default: typing.Any) -> typing.Any:
@@ -271,9 +275,40 @@ class Engine:
     MODEL_FPS: ClassVar[float | None] = None
     #: the folder the weights in use were loaded from (None: fitted here, or not fitted)
     loaded_from_: Path | None = None
+    #: which weights the last clean used, for its output line and the app: "skeleton-specific
+    #: weights FOLDER" or "universal weights FOLDER" (a universal variant's, also where a plain
+    #: engine's skeleton has none of its own: :meth:`universal_twin`); None: fitted here
+    weights_used_: str | None = None
+    #: canonical joints pinned by the user (``--mapping``) for a skeleton-agnostic engine
+    humanoid_overrides: Mapping[str, str | None] | None = None
+    #: the universal variant that cleans skeletons with no weights of their own (:meth:`universal_twin`)
+    _universal_twin: "Engine | None" = None
 
     def __init__(self, params: typing.Any = None) -> None:
         self.params = self.Params() if params is None else params
+
+    @property
+    def skeleton_agnostic(self) -> bool:
+        """This is a universal variant (its :data:`UNIVERSAL` parameter true): it models the
+        canonical humanoid (:mod:`workbench.core.humanoid`), so it trains on takes of
+        several skeletons together and cleans any skeleton that maps onto it."""
+        return bool(getattr(self.params, UNIVERSAL, False))
+
+    def humanoid(self, skeleton: Skeleton):
+        """The :class:`~workbench.core.humanoid.HumanoidMapping` of a body view, with the
+        user's :attr:`humanoid_overrides`.
+
+        Raises
+        ------
+        EngineError
+            The skeleton does not map (the message names the joints it lacks).
+        """
+        from ..core.humanoid import HumanoidError, map_humanoid
+
+        try:
+            return map_humanoid(skeleton, self.humanoid_overrides)
+        except HumanoidError as err:
+            raise EngineError(f"engine {self.spec!r}: {err}") from None
 
     # -- parameters -----------------------------------------------------------------
     @classmethod
@@ -403,7 +438,9 @@ class Engine:
         At least one, all of one skeleton layout; each is shown as the engine sees a
         take (:mod:`workbench.engine.view`): in its body view (a reference node above the
         pelvis collapsed into it) and resampled to :attr:`MODEL_FPS` where the class sets
-        one; without it they must share one frame rate.
+        one; without it they must share one frame rate. A :attr:`skeleton_agnostic`
+        variant (whose class sets :attr:`MODEL_FPS`) takes several skeletons, each of
+        which must map onto the canonical humanoid.
 
         Parameters
         ----------
@@ -428,12 +465,18 @@ class Engine:
         name = self.info.name
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
+        if self.skeleton_agnostic:  # each in its own body view; every skeleton must map
+            views = [to_body(m, body_skeleton(m.skeleton)) for m in motions]
+            for view in {v.skeleton.signature(): v for v in views}.values():
+                self.humanoid(view.skeleton)
+            return [resample(v, self.MODEL_FPS) for v in views]
         first = motions[0]
         for m in motions[1:]:
             if m.skeleton.signature() != first.skeleton.signature():
                 raise EngineError(
                     f"engine {name!r} trains on one skeleton layout; {first.name or 'motion 0'} "
                     f"and {m.name or 'another'} have different ones"
+                    + (f" (`{name}:{UNIVERSAL}=true` trains on several)" if hasattr(self.params, UNIVERSAL) else "")
                 )
             if self.MODEL_FPS is None and abs(m.fps - first.fps) > 1e-6:
                 raise EngineError(
@@ -447,7 +490,7 @@ class Engine:
     def fitted_on(self, motion: Motion) -> None:
         """Record what ``fit`` fitted for: the skeleton layout (:attr:`skeleton_signature_`)
         and frame rate (:attr:`fps_`) of ``motion``, one of :meth:`training_motions`."""
-        self.skeleton_signature_ = motion.skeleton.signature()
+        self.skeleton_signature_ = HUMANOID_SIGNATURE if self.skeleton_agnostic else motion.skeleton.signature()
         self.fps_ = float(motion.fps)
         self.loaded_from_ = None
 
@@ -481,12 +524,25 @@ class Engine:
         self.use_weights_for(body)
         self.require_fitted()
         self.check_skeleton(body)
+        self.weights_used_ = self.weights_description()
         return ModelView.of(observation, self.fps_, body)
+
+    def weights_description(self) -> str | None:
+        """ "universal weights FOLDER" or "skeleton-specific weights FOLDER" for the weights
+        (FOLDER relative to the working directory where it lies below it); None where the
+        engine was fitted here."""
+        if self.loaded_from_ is None:
+            return None
+        folder = self.loaded_from_.resolve()
+        shown = folder.relative_to(Path.cwd()) if folder.is_relative_to(Path.cwd()) else folder
+        kind = "universal" if self.skeleton_signature_ == HUMANOID_SIGNATURE else "skeleton-specific"
+        return f"{kind} weights {shown}"
 
     def check_skeleton(self, skeleton: Skeleton) -> None:
         """Refuse a skeleton of another layout than the one this engine was fitted for.
 
-        An engine that is not fitted (:attr:`skeleton_signature_` None) accepts any.
+        An engine that is not fitted (:attr:`skeleton_signature_` None) accepts any; one
+        fitted for the canonical humanoid (:data:`HUMANOID_SIGNATURE`) any that maps onto it.
 
         Parameters
         ----------
@@ -500,6 +556,9 @@ class Engine:
             ``skeleton.signature()`` differs from :attr:`skeleton_signature_`. The message
             says how to train the engine for it.
         """
+        if self.skeleton_signature_ == HUMANOID_SIGNATURE:
+            self.humanoid(skeleton)
+            return
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
             raise EngineError(
                 f"engine {self.info.name!r} has no weights for this skeleton ({skeleton.n_joints} body joints "
@@ -520,6 +579,8 @@ class Engine:
             ``"unknown"`` when the engine is not fitted.
         """
         sig = self.skeleton_signature_ or ""
+        if sig == HUMANOID_SIGNATURE:
+            return "the canonical humanoid"
         joints = [part for part in sig.split(";") if not part.startswith("translated:")]
         return f"{len(joints)} joints rooted at {joints[0].split('<')[0]!r}" if sig else "unknown"
 
@@ -832,6 +893,37 @@ class Engine:
             folder = self.committed_for(skeleton)
             if folder is not None:
                 self.load(folder)
+
+    def universal_twin(self, skeleton: Skeleton) -> "Engine | None":
+        """The committed universal variant that cleans ``skeleton`` (a body view) for this
+        engine: where this one runs on committed weights, has none for that skeleton, and
+        its class has a universal variant with committed weights (loaded once).
+
+        Returns
+        -------
+        Engine or None
+            This engine's parameters with :data:`UNIVERSAL` true, on the universal
+            variant's committed weights; None where any condition fails.
+
+        Raises
+        ------
+        EngineError
+            As :meth:`load` (a trained parameter the universal weights do not have).
+        """
+        if self.skeleton_agnostic or not hasattr(self.params, UNIVERSAL) or self.weights_folder is not None:
+            return None
+        if self.loaded_from_ is None or self.loaded_from_.parent != self.default_weights_dir():
+            return None
+        if skeleton.signature() in self.committed_weights():
+            return None
+        if self._universal_twin is None:
+            twin = type(self)(dataclasses.replace(self.params, **{UNIVERSAL: True}))
+            twin.humanoid_overrides = self.humanoid_overrides
+            folders = sorted(twin.committed_weights().values())
+            if not folders:
+                return None
+            self._universal_twin = twin.load(folders[0])
+        return self._universal_twin
 
 
 class Pipeline(Engine):
