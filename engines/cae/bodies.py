@@ -96,7 +96,7 @@ class CanonicalJoints:
 
     def lacking(self) -> list[str]:
         """The canonical joints the take's skeleton has none for (optional ones)."""
-        return [c for c, j in zip(CANONICAL_JOINTS, self.body.mapping.joints) if j < 0]
+        return self.body.mapping.lacking()
 
     def known(self, known: np.ndarray) -> np.ndarray:
         """(F, 21) from the take joints' (F, J); never for a canonical joint the take lacks."""

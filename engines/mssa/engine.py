@@ -12,10 +12,11 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
-from workbench.core.kinematics import inverse_kinematics
+from workbench.core.kinematics import forward_kinematics, inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, trained
+from workbench.engine.canonical import CanonicalBody
 from workbench.engine.signal import bridge_gaps
 from workbench.engine.smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
 
@@ -73,6 +74,17 @@ def _relative_positions(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
     F = channels.shape[0]
     P = Motion(skeleton, 1.0, channels[:, :3], channels[:, 3:].reshape(F, -1, 3)).positions
     return (P - P[:, :1]).reshape(F, -1)
+
+
+def _take_weights(body: CanonicalBody, canonical: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """(F, 3J) robust weights of the take's joint positions from the canonical ones (F,
+    63): a mapped joint's are its canonical joint's, the others' 1 where observed."""
+    F = observed.shape[0]
+    out = np.repeat(observed.astype(float), 3, axis=1).reshape(F, -1, 3)
+    joints = np.array(body.mapping.joints)
+    c = np.flatnonzero(joints >= 0)
+    out[:, joints[c]] = canonical.reshape(F, -1, 3)[:, c]
+    return out.reshape(F, -1)
 
 
 class MSSA(Engine):
@@ -136,6 +148,11 @@ class MSSA(Engine):
         #: their smoothed observed angles where the noise is in the angles (as in
         #: ``cae``; :func:`workbench.engine.smoothing.ik_reference`); 0: none
         angle_lever_cm: float = 13.5
+        #: space "positions" only: filter the canonical humanoid's positions (root-relative,
+        #: canonical cm; :mod:`workbench.engine.canonical`) instead of the take's joints, so
+        #: the bases train on several skeletons together (at
+        #: :data:`workbench.engine.base.UNIVERSAL_FPS`) and clean any that maps onto it
+        universal: bool = trained(False)
 
         def __post_init__(self) -> None:
             if self.space not in SPACES:
@@ -166,6 +183,8 @@ class MSSA(Engine):
             for name in ("short_lever_cm", "angle_lever_cm"):
                 if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                     raise ValueError(f"{name} must be 0 (off) or a length in cm, got {getattr(self, name)}")
+            if self.universal and self.space != "positions":
+                raise ValueError("universal bases model positions: write mssa:space=positions,universal=true")
             if not self.tol_rel_cost >= 0 or self.max_iterations < 1:
                 raise ValueError("tol_rel_cost must be >= 0 and max_iterations >= 1")
 
@@ -187,7 +206,7 @@ class MSSA(Engine):
         """(candidate columns, (F, len(columns)) channels) of a clean motion in ``space``."""
         skeleton = motion.skeleton
         if space == "positions":
-            rel = _relative_positions(skeleton, motion.channels)
+            rel = self._positions(skeleton, motion.channels)
             return np.arange(rel.shape[1]), rel
         cols = angle_columns(skeleton)
         return cols, unwrap_deg(motion.channels[:, cols])
@@ -198,7 +217,8 @@ class MSSA(Engine):
         centred = [X - np.median(X, axis=0) for _, X in parts]
         spread = np.sqrt(np.mean(np.square(np.concatenate(centred)), axis=0))
         keep = spread > CONSTANT_STD
-        floor = SCALE_FLOOR_DEG if space == "angles" else SCALE_FLOOR_CM / motions[0].skeleton.unit_cm
+        unit_cm = 1.0 if self.params.universal else motions[0].skeleton.unit_cm  # canonical cm
+        floor = SCALE_FLOOR_DEG if space == "angles" else SCALE_FLOOR_CM / unit_cm
         scale = np.maximum(spread[keep], floor)
         mean = np.concatenate([X for _, X in parts]).mean(axis=0)[keep]
         normalised = [X[:, keep] / scale for X in centred]
@@ -206,14 +226,43 @@ class MSSA(Engine):
         return SpaceModel(candidates[keep], candidates[~keep], mean, scale, bases.astype(np.float32), spectrum)
 
     def fit(self, motions: Sequence[Motion], /) -> "MSSA":
-        """Learn the filter bases of both spaces from clean motions of one skeleton layout."""
+        """Learn the filter bases of both spaces from clean motions of one skeleton layout
+        (universal: of the canonical humanoid's positions, from any skeletons that map)."""
         motions = self.training_motions(motions)
         M = self.params.window_frames
         if max(m.n_frames for m in motions) < M:
             raise EngineError(f"mssa: no training motion has the {M} frames a window needs")
-        self.models_ = {space: self._fit_space(motions, space) for space in SPACES}
+        if self.params.universal and (lacking := self._lacking(motions)):
+            raise EngineError(
+                f"mssa: universal bases train on skeletons with every canonical joint; {lacking} "
+                "(pin them with a mapping file, or leave these takes out)"
+            )
+        self.models_ = {space: self._fit_space(motions, space) for space in self._spaces}
         self.fitted_on(motions[0])
         return self
+
+    @property
+    def _spaces(self) -> tuple[str, ...]:
+        """The spaces the weights hold: both, or the positions of universal bases."""
+        return ("positions",) if self.params.universal else SPACES
+
+    def _lacking(self, motions: Sequence[Motion]) -> str:
+        """Which training skeletons lack canonical joints, and which ('' for none)."""
+        for m in {m.skeleton.signature(): m for m in motions}.values():
+            if missing := self.humanoid(m.skeleton).lacking():
+                return f"{m.name or 'a training take'} has none for {', '.join(missing)}"
+        return ""
+
+    def _positions(self, skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
+        """(F, 3K) root-relative positions of a finite channel matrix (F, 3 + 3J): the take's
+        joints in file units, or universal: the canonical joints in canonical cm (a joint
+        the take lacks at the root)."""
+        rel = _relative_positions(skeleton, channels)
+        if not self.params.universal:
+            return rel
+        body = CanonicalBody(self.humanoid(skeleton))
+        canonical = body.positions(rel.reshape(rel.shape[0], -1, 3))
+        return np.nan_to_num(canonical, nan=0.0).reshape(rel.shape[0], -1)
 
     # -- cleaning ---------------------------------------------------------------------
     def clean(self, observation: Observation, /) -> CleanResult:
@@ -228,11 +277,13 @@ class MSSA(Engine):
         raw, mask = observation.motion.channels, observation.channel_observed
         X = bridge_gaps(observation)
         F = X.shape[0]
+        body = CanonicalBody(self.humanoid(skeleton)) if self.params.universal else None
         if self.params.space == "angles":
             Y, observed = X, mask
         else:
-            Y = _relative_positions(skeleton, X)
-            observed = np.repeat(_ancestors_observed(skeleton, observation.observed), 3, axis=1)
+            Y = self._positions(skeleton, X)
+            known = _ancestors_observed(skeleton, observation.observed)
+            observed = np.repeat(known if body is None else body.known(known), 3, axis=1)
 
         cols = model.columns
         sub = Y[:, cols]
@@ -273,18 +324,26 @@ class MSSA(Engine):
 
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
-            world = out.reshape(F, -1, 3) + root_joint[:, None]
             reference, short, frames = ik_reference(
                 skeleton,
                 X,
                 observation.observed,
-                Y.reshape(F, -1, 3),
+                _relative_positions(skeleton, X).reshape(F, -1, 3),
                 self.params.short_lever_cm,
                 self.params.angle_lever_cm,
             )
-            root, angles, translations = inverse_kinematics(
-                skeleton, world, reference, reference_joints=short, reference_frames=frames
-            )
+            if body is None:
+                world = out.reshape(F, -1, 3) + root_joint[:, None]
+                root, angles, translations = inverse_kinematics(
+                    skeleton, world, reference, reference_joints=short, reference_frames=frames
+                )
+            else:  # canonical targets; the joints the take has keep their observed weights
+                canonical = out.reshape(F, -1, 3) + (root_joint * body.scale)[:, None]
+                ref_positions, _ = forward_kinematics(skeleton, root_track[:, :3], reference)
+                root, angles, translations = body.solve(
+                    canonical, ref_positions, reference, reference_joints=short, reference_frames=frames
+                )
+                weight = _take_weights(body, weight, observation.observed)
             out = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations).channels
         out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
         motion = observation.motion.with_channels(out)
@@ -300,7 +359,7 @@ class MSSA(Engine):
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         fields = [f.name for f in dataclasses.fields(SpaceModel)]
-        keys = {space: {name: f"{space}_{name}" for name in fields} for space in SPACES}
+        keys = {space: {name: f"{space}_{name}" for name in fields} for space in self._spaces}
         missing = sorted(k for names in keys.values() for k in names.values() if k not in arrays)
         if missing:
             raise EngineError(f"mssa: these weights lack {', '.join(missing)} (an older format); retrain them")

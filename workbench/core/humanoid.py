@@ -128,6 +128,10 @@ class HumanoidMapping:
         """The take's joint index of a canonical joint (-1 where absent)."""
         return self.joints[CANONICAL_JOINTS.index(canonical)]
 
+    def lacking(self) -> list[str]:
+        """The canonical joints the take has no joint for (optional ones, such as toes)."""
+        return [c for c, j in zip(CANONICAL_JOINTS, self.joints) if j < 0]
+
     def unmapped_joints(self) -> tuple[int, ...]:
         """The take's joints no canonical joint takes (fingers, extra spine or neck joints,
         reference nodes above the hips), ascending: they keep their own angles."""

@@ -51,6 +51,9 @@ TRAINED, TRAINING, INFERENCE = "trained", "training", "inference"
 UNIVERSAL = "universal"
 #: the skeleton signature such a variant's weights record: they model the canonical humanoid
 HUMANOID_SIGNATURE = "canonical humanoid"
+#: the rate (fps) a universal variant trains and runs at where its class sets no
+#: :attr:`Engine.MODEL_FPS`: pooled data sets come at several rates
+UNIVERSAL_FPS = 120.0
 
 
 def trained(default: typing.Any) -> typing.Any:
@@ -439,8 +442,8 @@ class Engine:
         take (:mod:`workbench.engine.view`): in its body view (a reference node above the
         pelvis collapsed into it) and resampled to :attr:`MODEL_FPS` where the class sets
         one; without it they must share one frame rate. A :attr:`skeleton_agnostic`
-        variant (whose class sets :attr:`MODEL_FPS`) takes several skeletons, each of
-        which must map onto the canonical humanoid.
+        variant takes several skeletons, each of which must map onto the canonical
+        humanoid, resampled to :attr:`MODEL_FPS` or else :data:`UNIVERSAL_FPS`.
 
         Parameters
         ----------
@@ -469,7 +472,7 @@ class Engine:
             views = [to_body(m, body_skeleton(m.skeleton)) for m in motions]
             for view in {v.skeleton.signature(): v for v in views}.values():
                 self.humanoid(view.skeleton)
-            return [resample(v, self.MODEL_FPS) for v in views]
+            return [resample(v, self.MODEL_FPS or UNIVERSAL_FPS) for v in views]
         first = motions[0]
         for m in motions[1:]:
             if m.skeleton.signature() != first.skeleton.signature():
