@@ -75,7 +75,7 @@ def test_a_failing_report_leaves_the_old_file_untouched(tmp_path, capsys):
 
 
 def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
-    from workbench.app.main import STUDIO_CLIP
+    from workbench.app.main import STUDIO_CLIP, UNSEEN_CLIP
     from workbench.io import write_bvh
 
     take = tmp_path / "walk.bvh"
@@ -95,6 +95,7 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
     assert run.returncode == 0, run.stderr[-2000:]
     names = sorted(p.name for p in (tmp_path / "shots").iterdir())
     studio = ["studio.png"] if any(c.id == STUDIO_CLIP for c in clips) else []  # a Bandai take by its id
+    unseen = ["unseen.png"] if any(c.id == UNSEEN_CLIP for c in clips) else []
     assert names == [
         "compare.png",
         "default.png",
@@ -104,6 +105,7 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
         "recorded.png",
         "report.png",
         *studio,
+        *unseen,
     ]
     assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
     assert "Traceback" not in run.stderr

@@ -121,3 +121,23 @@ def test_sampler_draws_each_skeleton_equally_often():
     )
     first = sampler.windows(4000)[:, 0, 0] == 0.0
     assert abs(first.mean() - 0.5) < 0.03
+
+
+def test_the_plain_cae_cleans_a_skeleton_without_weights_on_the_committed_universal_ones(kick, walk):
+    """No Daz weights: ``cae`` uses ``cae:universal=true``'s committed weights, and says
+    so; a CMU take still gets the CMU weights. ``holden`` has no universal weights yet:
+    it refuses the Daz take, naming the skeleton."""
+    from workbench import registry
+    from workbench.core.motion import Observation
+
+    engine = registry.create("cae")
+    obs = parse_corruption("block:30").apply(kick.slice(0, 120), seed=0)
+    result = engine.clean(obs)
+    assert np.isfinite(result.motion.channels).all()
+    assert engine.weights_used_.startswith("universal weights ") and "cae-universal" in engine.weights_used_
+    universal = registry.create("cae:universal=true")
+    np.testing.assert_array_equal(universal.clean(obs).motion.channels, result.motion.channels)
+    engine.clean(Observation(walk.slice(0, 120)))
+    assert engine.weights_used_.startswith("skeleton-specific weights ") and engine.weights_used_.endswith("cmu")
+    with pytest.raises(EngineError, match="no weights for this skeleton"):
+        registry.create("holden").clean(obs)

@@ -158,7 +158,8 @@ class EnginePanel(QGroupBox):
             return "running…"
         if not isinstance(run, EngineRun):
             return "failed"
-        return f"{run.seconds:.2f} s" + (f", {run.weights_kind}" if run.weights_kind else "")
+        universal = run.weights_kind == "universal weights"  # the surprise: no weights of its own
+        return f"{run.seconds:.2f} s" + (", universal weights" if universal else "")
 
     def refresh(self) -> None:
         s = self.session

@@ -23,10 +23,15 @@ OUTLIER_ENGINE = "mssa"
 OUTLIER_CORRUPTION = "angular:0.5+outliers:0.05"
 #: the studio screenshot: a held-out-style take of the Bandai studio set (22 joints with six
 #: channels each, 30 fps) by its catalogue id, with the default's corruption in seconds
-#: (gaps of 0.1 s starting 1.2 times a second per joint, as gaps:0.01 at 120 fps), and the
-#: classical engines (no trained engine has weights for this skeleton yet)
+#: (gaps of 0.1 s starting 1.2 times a second per joint, as gaps:0.01 at 120 fps); the
+#: trained engines clean it with their Bandai weights
 STUDIO_CLIP = "bandai/walk/dataset-1_walk_happy_001"
 STUDIO_CORRUPTION = "angular:0.5+gaps:0.04,0.1s"
+#: the unseen screenshot: a take of a skeleton no engine has weights of its own for (CMU
+#: Daz, 43 joints) with a 1-s block, filled by the plain ``cae`` on its universal weights
+UNSEEN_CLIP = "cmu-daz/kick/10_03"
+UNSEEN_CORRUPTION = "block:1s"
+UNSEEN_ENGINES = ["lerp", "kalman", "cae"]
 
 
 def has_display() -> bool:
@@ -117,8 +122,9 @@ def make_screenshots(
     engine whose widths vary most), outliers (the outlier-weight tab of
     :data:`OUTLIER_ENGINE` on :data:`OUTLIER_CORRUPTION`), recorded (the take as
     recorded, no ground truth, every engine compared), studio (:data:`STUDIO_CLIP`
-    compared, where the data root has it) and report. ``specs``: the engines (default:
-    :func:`default_engines`)."""
+    compared, where the data root has it), unseen (:data:`UNSEEN_CLIP` compared, by
+    :data:`UNSEEN_ENGINES`, where the data root has it) and report. ``specs``: the
+    engines (default: :func:`default_engines`)."""
     from .report import write_report
 
     out = Path(out_dir)
@@ -172,6 +178,12 @@ def make_screenshots(
         settle(window)
         s.set_frame(s.take.n_frames // 2)
         shoot("studio")
+    if _in_catalogue(UNSEEN_CLIP):
+        s.set_specs([spec for spec in UNSEEN_ENGINES if loadable(spec)])
+        s.open(UNSEEN_CLIP, UNSEEN_CORRUPTION, 0)
+        settle(window)
+        s.set_frame(int(np.flatnonzero(~s.take.observation.observed[:, 0]).mean()))  # inside the block
+        shoot("unseen")
     paths.append(write_report(out / "report.png", source, corruption, 0, specs, frame=frame))
     window.close()
     return paths

@@ -204,8 +204,11 @@ class EngineRun:
 
     @property
     def weights_kind(self) -> str | None:
-        """The first two words of :attr:`weights`: universal or skeleton-specific weights (None: none)."""
-        return " ".join(self.weights.split()[:2]) if self.weights else None
+        """Which weights, short enough for a pane title: universal ones, or the skeleton's
+        own ("universal weights", "own weights"); None for an engine with no weights."""
+        if not self.weights:
+            return None
+        return "universal weights" if self.weights.startswith("universal") else "own weights"
 
     @property
     def filter_sigma_frames(self) -> np.ndarray | None:

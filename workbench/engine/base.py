@@ -920,7 +920,11 @@ class Engine:
         if skeleton.signature() in self.committed_weights():
             return None
         if self._universal_twin is None:
-            twin = type(self)(dataclasses.replace(self.params, **{UNIVERSAL: True}))
+            try:
+                params = dataclasses.replace(self.params, **{UNIVERSAL: True})
+            except ValueError:  # no universal form of this variant (mssa's angle space)
+                return None
+            twin = type(self)(params)
             twin.humanoid_overrides = self.humanoid_overrides
             folders = sorted(twin.committed_weights().values())
             if not folders:

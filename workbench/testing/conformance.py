@@ -106,11 +106,13 @@ def check_result_is_not_a_view(engine, name: str, motion: Motion, **_) -> None:
 
 
 def _has_committed_weights_for(engine, skeleton) -> bool:
-    """The engine runs on committed weights and has some for ``skeleton``'s body view."""
+    """The engine runs on committed weights and has some for ``skeleton``'s body view: its
+    own, or those of its universal variant (:meth:`~workbench.engine.Engine.universal_twin`)."""
     from workbench.engine.view import body_skeleton
 
     try:
-        return engine.committed_for(body_skeleton(skeleton)) is not None
+        body = body_skeleton(skeleton)
+        return engine.committed_for(body) is not None or engine.universal_twin(body) is not None
     except EngineError:  # a skeleton no trained engine models
         return False
 
