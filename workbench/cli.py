@@ -407,7 +407,9 @@ def cmd_train(args) -> int:
     if args.promote:
         import shutil
 
-        dest = engine.default_weights_dir() / "+".join(dict.fromkeys(c.dataset for c, _ in used))
+        named = [name.strip() for name in dataset.split(",")] if dataset else []  # in the order given
+        pooled = [d for d in named if any(c.dataset == d for c, _ in used)] or [used[0][0].dataset]
+        dest = engine.default_weights_dir() / "+".join(pooled)  # cmu/, or cmu+bandai/ for pooled data
         dest.mkdir(parents=True, exist_ok=True)
         for f in out.iterdir():
             shutil.copy2(f, dest / f.name)
