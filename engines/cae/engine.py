@@ -61,7 +61,6 @@ from workbench.engine.smoothing import (
     smoothing_ratio,
 )
 from workbench.engine.threads import one_blas_thread
-from workbench.engine.view import body_skeleton
 
 from .bodies import CANONICAL_LAYOUT, CanonicalJoints, OwnJoints
 from .representation import (
@@ -365,10 +364,7 @@ class ConvAutoencoderEngine(Engine):
         at the rate of the weights) and the result put back on it; a take whose skeleton
         has no committed weights of its own by the universal variant's committed weights
         (:meth:`Engine.universal_twin`; :attr:`weights_used_` says which were used)."""
-        twin = self.universal_twin(body_skeleton(observation.skeleton))
-        if twin is not None:  # no weights for this skeleton: the universal ones
-            result = twin.clean(observation, constraints=constraints)
-            self.weights_used_ = twin.weights_used_
+        if (result := self.universal_clean(observation, constraints=constraints)) is not None:  # no own weights
             return result
         view = self.model_view(observation)
         if constraints:

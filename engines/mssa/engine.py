@@ -267,7 +267,11 @@ class MSSA(Engine):
     # -- cleaning ---------------------------------------------------------------------
     def clean(self, observation: Observation, /) -> CleanResult:
         """Clean the take in the engine's view of it (:meth:`model_view`: body-rooted, at the
-        rate of the weights) and put the result back on the take."""
+        rate of the weights) and put the result back on the take; in position space, a take
+        whose skeleton has no committed bases of its own by the committed universal ones
+        (:meth:`Engine.universal_clean`)."""
+        if (result := self.universal_clean(observation)) is not None:
+            return result
         view = self.model_view(observation)
         return view.restore(self._clean(view.observation))
 

@@ -341,3 +341,14 @@ def test_universal_bases_are_of_positions_and_need_every_canonical_joint(walk, k
         MSSA.Params(universal=True)
     with pytest.raises(EngineError, match="left_toes, right_toes"):
         MSSA(MSSA.Params(space="positions", universal=True)).fit([walk, kick])
+
+
+def test_committed_universal_bases_clean_the_unseen_skeleton_in_position_space_only(kick):
+    """``mssa:space=positions`` has no Daz bases of its own: it uses the committed universal
+    ones, and says so; ``mssa`` (angles) has no universal form and refuses the take."""
+    obs = parse_corruption("angular:0.5").apply(kick.slice(0, 120), seed=0)
+    positions = registry.create("mssa:space=positions")
+    assert np.isfinite(positions.clean(obs).motion.channels).all()
+    assert positions.weights_used_.startswith("universal weights ") and "mssa-universal" in positions.weights_used_
+    with pytest.raises(EngineError, match="no weights for this skeleton"):
+        registry.create("mssa").clean(obs)

@@ -897,6 +897,20 @@ class Engine:
             if folder is not None:
                 self.load(folder)
 
+    def universal_clean(self, observation: Observation, /, **options) -> CleanResult | None:
+        """The :meth:`universal_twin`'s clean of ``observation`` (``options``: the keyword
+        arguments of ``clean``), with :attr:`weights_used_` set to its weights; None where
+        this engine has weights of its own for the take's skeleton (or no twin), so that
+        a trained engine's ``clean`` starts with it."""
+        from .view import body_skeleton
+
+        twin = self.universal_twin(body_skeleton(observation.skeleton))
+        if twin is None:
+            return None
+        result = twin.clean(observation, **options)
+        self.weights_used_ = twin.weights_used_
+        return result
+
     def universal_twin(self, skeleton: Skeleton) -> "Engine | None":
         """The committed universal variant that cleans ``skeleton`` (a body view) for this
         engine: where this one runs on committed weights, has none for that skeleton, and
