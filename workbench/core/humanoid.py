@@ -190,6 +190,9 @@ class _Tree:
             self.depth[j] = self.depth[p] + 1 if p >= 0 else 0
         self.rest = rest_positions(skeleton)
         self.scale = max(skeleton.rest_height(), 1e-9)
+        self.in_body = [False] * skeleton.n_joints  # the body root and its descendants
+        for j, p in enumerate(skeleton.parents):  # parents come before their children
+            self.in_body[j] = j == skeleton.body_root or (p >= 0 and self.in_body[p])
 
     def ancestors(self, j: int) -> list[int]:
         """j's ancestors, nearest first."""
@@ -215,7 +218,7 @@ class _Tree:
         hits = [
             j
             for j in range(s.n_joints)
-            if (j == s.body_root or self.below(j, s.body_root))
+            if self.in_body[j]
             and re.search(pattern, _stem(s.names[j]), re.IGNORECASE)
             and not (exclude and exclude.search(s.names[j]))
             and (side is None or joint_side(s.names[j]) == side)

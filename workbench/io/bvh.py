@@ -81,12 +81,15 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
         tokens.expect("OFFSET")
         return [tokens.number("OFFSET x"), tokens.number("OFFSET y"), tokens.number("OFFSET z")]
 
-    def joint(parent: int) -> None:
+    seen: set[str] = set()
+
+    def open_joint(parent: int) -> int:
+        """Read a joint's name, brace, OFFSET and CHANNELS; its index."""
         name, line = tokens.next("a joint name")
-        if name in names:
+        if name in seen:
             raise MotionFileError(path, f"joint name {name!r} appears twice", line)
+        seen.add(name)
         tokens.expect("{")
-        index = len(names)
         names.append(name)
         parents.append(parent)
         offsets.append(offset())
@@ -107,23 +110,25 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
             Skeleton._validate_channels(name, tuple(chans))
         except ValueError as err:
             raise MotionFileError(path, str(err), line) from None
-        while True:
-            tok, line = tokens.next("'JOINT', 'End Site' or '}'")
-            if tok == "}":
-                return
-            if tok == "JOINT":
-                joint(index)
-            elif tok == "End":
-                site, sline = tokens.next("'Site'")
-                if site.lower() != "site":
-                    raise MotionFileError(path, f"expected 'End Site', found 'End {site}'", sline)
-                tokens.expect("{")
-                end_sites.append((index, tuple(offset())))
-                tokens.expect("}")
-            else:
-                raise MotionFileError(path, f"expected 'JOINT', 'End Site' or '}}', found {tok!r}", line)
+        return len(names) - 1
 
-    joint(-1)
+    # the open joints, innermost last: a loop, not recursion, so any depth reads
+    open_joints = [open_joint(-1)]
+    while open_joints:
+        tok, line = tokens.next("'JOINT', 'End Site' or '}'")
+        if tok == "}":
+            open_joints.pop()
+        elif tok == "JOINT":
+            open_joints.append(open_joint(open_joints[-1]))
+        elif tok == "End":
+            site, sline = tokens.next("'Site'")
+            if site.lower() != "site":
+                raise MotionFileError(path, f"expected 'End Site', found 'End {site}'", sline)
+            tokens.expect("{")
+            end_sites.append((open_joints[-1], tuple(offset())))
+            tokens.expect("}")
+        else:
+            raise MotionFileError(path, f"expected 'JOINT', 'End Site' or '}}', found {tok!r}", line)
     if tokens.pos < len(tokens.items):
         tok, line = tokens.items[tokens.pos]
         raise MotionFileError(path, f"unexpected {tok!r} after the root joint's closing brace", line)
@@ -318,18 +323,22 @@ def format_bvh(motion: Motion, digits: int = DIGITS) -> str:
     def fmt(v) -> str:
         return " ".join(f"{x:.{digits}g}" for x in v)
 
-    def write_joint(j: int, depth: int) -> None:
+    # depth-first with an explicit stack (any depth): a joint opens, its children follow,
+    # then its End Sites and its closing brace
+    stack: list[tuple[int, int, bool]] = [(0, 0, False)]  # joint, depth, closing
+    while stack:
+        j, depth, closing = stack.pop()
         ind = "\t" * depth
+        if closing:
+            for off in ends.get(j, []):
+                out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
+            out.write(f"{ind}}}\n")
+            continue
         out.write(f"{ind}{'ROOT' if j == 0 else 'JOINT'} {sk.names[j]}\n{ind}{{\n")
         out.write(f"{ind}\tOFFSET {fmt(sk.file_offsets[j])}\n")
         out.write(f"{ind}\tCHANNELS {len(sk.channels[j])}{''.join(' ' + c for c in sk.channels[j])}\n")
-        for c in children[j]:
-            write_joint(c, depth + 1)
-        for off in ends.get(j, []):
-            out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
-        out.write(f"{ind}}}\n")
-
-    write_joint(0, 0)
+        stack.append((j, depth, True))
+        stack.extend((c, depth + 1, False) for c in reversed(children[j]))
     out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {1.0 / motion.fps:.7f}\n")
     np.savetxt(out, values, fmt=f"%.{digits}g", delimiter=" ")
     return out.getvalue()
