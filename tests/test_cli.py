@@ -413,3 +413,21 @@ def test_the_readme_python_api_runs_as_it_stands(tmp_path, monkeypatch, capsys):
     out = capsys.readouterr().out.splitlines()
     assert [line.split(" ")[0] for line in out] == ["lerp>gaussian", "kalman"] and "mpjpe_cm" in out[1]
     assert read_bvh(tmp_path / "cleaned.bvh").n_frames == 421
+
+
+def test_clean_never_overwrites_its_input_unless_told_and_then_keeps_the_raw_take(tmp_path, data_root, capsys):
+    take = tmp_path / "take.bvh"
+    take.write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    raw = take.read_bytes()
+    assert main(["clean", str(take), "-o", str(take), "--engine", "lerp"]) == 2
+    assert "would overwrite the raw take" in capsys.readouterr().err and take.read_bytes() == raw
+    assert main(["clean", str(take), "--engine", "lerp"]) == 2
+    assert "-o" in capsys.readouterr().err
+    assert main(["clean", str(take), "--in-place", "--engine", "gaussian"]) == 0
+    backup = tmp_path / "take.bvh.orig"
+    assert backup.read_bytes() == raw and take.read_bytes() != raw
+    once = take.read_bytes()
+    assert main(["clean", str(take), "--in-place", "--engine", "gaussian"]) == 0
+    assert backup.read_bytes() == raw, "a second in-place clean keeps the first backup: the raw take"
+    assert take.read_bytes() != once
+    assert main(["clean", str(tmp_path), "--in-place", "--engine", "lerp"]) == 2

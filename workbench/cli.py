@@ -193,12 +193,47 @@ def _clean_take(engine, source: Path, output: Path, mask: str | None, keep_refer
     )
 
 
+#: the suffix of the raw take ``clean --in-place`` keeps beside it
+BACKUP_SUFFIX = ".orig"
+
+
+def _back_up(take: Path) -> None:
+    """Keep ``take`` as TAKE.orig before it is cleaned over itself (atomically); an existing
+    backup is kept, since it holds the take as it was before the first clean."""
+    import shutil
+
+    from .io.atomic import atomic_path
+
+    backup = take.with_name(take.name + BACKUP_SUFFIX)
+    if backup.exists():
+        print(f"note: {backup} is kept as it is (the take before its first in-place clean)", file=sys.stderr)
+        return
+    with atomic_path(backup) as tmp:
+        shutil.copy2(take, tmp)
+    print(f"note: the raw take is kept as {backup}", file=sys.stderr)
+
+
 def cmd_clean(args) -> int:
     from . import registry
     from .data.roots import files_under
     from .io import MOTION_SUFFIXES
 
-    source, output = Path(args.input), Path(args.output)
+    source = Path(args.input)
+    if args.in_place:
+        if args.output:
+            raise UserError("--in-place writes the cleaned take over its input: leave out -o")
+        if source.is_dir() or source.suffix.lower() != ".bvh":
+            raise UserError(f"--in-place cleans one BVH take over itself; for {source} name an output with -o")
+        output = source
+    elif not args.output:
+        raise UserError("name the cleaned take's file with -o (or clean a BVH take over itself with --in-place)")
+    else:
+        output = Path(args.output)
+        if not source.is_dir() and output.resolve() == source.resolve():
+            raise UserError(
+                f"-o {output} is the input take: cleaning would overwrite the raw take. Name another file, "
+                f"or pass --in-place, which keeps the original as {source.name}{BACKUP_SUFFIX}"
+            )
     engine = registry.create(args.engine)
     if args.mapping:
         from .io.mapping import read_mapping
@@ -207,6 +242,8 @@ def cmd_clean(args) -> int:
         for stage in getattr(engine, "stages", [engine]):
             stage.humanoid_overrides = overrides
     if not source.is_dir():
+        if args.in_place:
+            _back_up(source)
         _clean_take(engine, source, output, args.mask, args.keep_reference)
         return 0
     if args.mask:
@@ -497,7 +534,12 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "input", help="a BVH/AMC take, or a folder of them (cleaned into the folder -o names, with the same layout)"
     )
-    sp.add_argument("-o", "--output", required=True)
+    sp.add_argument("-o", "--output", help="the cleaned take (or folder); never the input itself")
+    sp.add_argument(
+        "--in-place",
+        action="store_true",
+        help=f"write the cleaned take over its input (one BVH take), keeping the raw one as INPUT{BACKUP_SUFFIX}",
+    )
     sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
     sp.add_argument(
