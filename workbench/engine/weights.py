@@ -163,8 +163,9 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     ------
     EngineError
         With a clear message for a missing, corrupt or tampered file: no manifest, an
-        unreadable one, one of another :data:`FORMAT_VERSION`, a missing weights file,
-        a checksum that does not match, or unreadable weights.
+        unreadable one, one of another :data:`FORMAT_VERSION`, a weights file named by
+        a path out of the folder, a missing weights file, a checksum that does not match,
+        or unreadable weights.
     """
     folder = Path(folder)
     manifest_path = folder / MANIFEST_FILE
@@ -182,7 +183,13 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
             f"this workbench reads format {FORMAT_VERSION}; retrain the engine "
             "(`workbench train SPEC --out FOLDER`)"
         )
-    path = folder / manifest.get("file", WEIGHTS_FILE)
+    name = manifest.get("file", WEIGHTS_FILE)
+    if not isinstance(name, str) or Path(name).name != name or name in ("", ".", ".."):
+        raise EngineError(
+            f"{manifest_path}: the weights file must be named by a plain file name in the manifest's "
+            f"folder, not {name!r}; retrain the engine or restore the manifest"
+        )
+    path = folder / name
     if not path.exists():
         raise EngineError(f"{path}: the weights file named by the manifest is missing")
     if sha256_file(path) != manifest.get("sha256"):
