@@ -103,11 +103,13 @@ def test_weights_that_do_not_say_their_frame_rate_are_refused(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["../weights.npz", "/etc/passwd", "sub/weights.npz", "", 7])
-def test_a_manifest_cannot_name_a_file_out_of_its_folder(saved, name):
+def test_a_manifest_cannot_name_a_file_out_of_its_folder(tmp_path, name):
     """A weights file elsewhere, with the checksum the manifest holds, is still refused."""
-    (saved.parent / WEIGHTS_FILE).write_bytes((saved / WEIGHTS_FILE).read_bytes())  # ../weights.npz
-    manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
+    folder = tmp_path / "weights"
+    save_weights(folder, {"w": np.zeros(3)}, {"engine": "demo", "skeleton_signature": "x"})
+    (tmp_path / WEIGHTS_FILE).write_bytes((folder / WEIGHTS_FILE).read_bytes())  # ../weights.npz
+    manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
     manifest["file"] = name
-    (saved / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
+    (folder / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
     with pytest.raises(EngineError, match="plain file name in the manifest's folder"):
-        load_weights(saved)
+        load_weights(folder)
