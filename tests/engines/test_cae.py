@@ -174,9 +174,12 @@ def test_constraints_pull_the_gap_towards_them(test_clip):
         engine.clean(obs, constraints={0: (frames, P[frames, 0])})
 
 
-def test_refuses_another_skeleton(trained, kick):
+def test_weights_for_one_skeleton_refuse_another(kick):
+    """Named weights are never swapped: CMU's cae weights refuse a Daz take (the plain
+    ``cae`` would clean it with its universal weights: test_cae_universal.py)."""
+    cmu = registry.create("cae").default_weights_dir() / "cmu"
     with pytest.raises(EngineError, match="skeleton"):
-        trained["cae"].clean(Observation(kick.slice(0, 50)))
+        registry.create(f"cae:weights={cmu}").clean(Observation(kick.slice(0, 50)))
 
 
 @pytest.mark.parametrize("cls", [CAE, Holden])

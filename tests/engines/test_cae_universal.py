@@ -125,8 +125,8 @@ def test_sampler_draws_each_skeleton_equally_often():
 
 def test_the_plain_cae_cleans_a_skeleton_without_weights_on_the_committed_universal_ones(kick, walk):
     """No Daz weights: ``cae`` uses ``cae:universal=true``'s committed weights, and says
-    so; a CMU take still gets the CMU weights. ``holden`` has no universal weights yet:
-    it refuses the Daz take, naming the skeleton."""
+    so; a CMU take still gets the CMU weights. ``holden`` and ``cae-vanilla`` have
+    universal weights too; ``ebd``, which has none, refuses the Daz take, naming the skeleton."""
     from workbench import registry
     from workbench.core.motion import Observation
 
@@ -139,5 +139,9 @@ def test_the_plain_cae_cleans_a_skeleton_without_weights_on_the_committed_univer
     np.testing.assert_array_equal(universal.clean(obs).motion.channels, result.motion.channels)
     engine.clean(Observation(walk.slice(0, 120)))
     assert engine.weights_used_.startswith("skeleton-specific weights ") and engine.weights_used_.endswith("cmu")
+    for name in ("holden", "cae-vanilla"):
+        other = registry.create(name)
+        other.clean(obs)
+        assert other.weights_used_.startswith("universal weights ") and f"{name}-universal" in other.weights_used_
     with pytest.raises(EngineError, match="no weights for this skeleton"):
-        registry.create("holden").clean(obs)
+        registry.create("ebd").clean(obs)
