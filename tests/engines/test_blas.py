@@ -21,7 +21,7 @@ def test_one_blas_thread_inside_and_restored_after():
 
 
 def test_the_torch_engines_clean_on_one_blas_thread(monkeypatch, walk):
-    import engines.cae.engine as cae_engine
+    import engines.cae.bodies as cae_bodies  # the IK of the cae family
     from engines.ebf import filters
 
     seen = []
@@ -33,7 +33,7 @@ def test_the_torch_engines_clean_on_one_blas_thread(monkeypatch, walk):
 
         return call
 
-    monkeypatch.setattr(cae_engine, "inverse_kinematics", recording(cae_engine.inverse_kinematics))
+    monkeypatch.setattr(cae_bodies, "inverse_kinematics", recording(cae_bodies.inverse_kinematics))
     monkeypatch.setattr(filters, "rewrap_angles", recording(filters.rewrap_angles))
     obs = parse_corruption("angular:0.5").apply(walk.slice(0, 160), seed=0)
     for name in ("cae", "ebf"):
