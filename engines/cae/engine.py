@@ -197,7 +197,8 @@ class ConvAutoencoderEngine(Engine):
 
     # -- training -------------------------------------------------------------------
     def fit(self, motions: Sequence[Motion], /) -> "ConvAutoencoderEngine":
-        """Train on clean motions of one skeleton layout (the training split)."""
+        """Train on clean motions of one skeleton layout (the training split); a universal
+        variant on those of any skeletons that map onto the canonical humanoid."""
         from workbench.engine.torch_support import reproducible_training
 
         motions = self.training_motions(motions)
