@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 
@@ -14,3 +15,14 @@ class MotionFileError(ValueError):
         self.reason = message
         where = f"{self.path}:{line}" if line is not None else self.path
         super().__init__(f"{where}: {message}")
+
+
+def read_json_file(path: str | Path, kind: str) -> object:
+    """The JSON document in ``path``; a :class:`MotionFileError` naming the file and ``kind``
+    (e.g. "mask", "mapping") where it cannot be read or is not JSON."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except OSError as err:
+        raise MotionFileError(path, f"cannot read the {kind} file ({err.strerror or err})") from None
+    except ValueError as err:
+        raise MotionFileError(path, f"not a JSON {kind} file ({err})") from None

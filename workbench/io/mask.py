@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.skeleton import Skeleton
 from .atomic import atomic_write_text
-from .errors import MotionFileError
+from .errors import MotionFileError, read_json_file
 
 FORMAT = "mocap-workbench observed mask v1"
 
@@ -32,13 +32,7 @@ def write_mask(path: str | Path, observed: np.ndarray, skeleton: Skeleton) -> No
 
 def read_mask(path: str | Path, skeleton: Skeleton, n_frames: int) -> np.ndarray:
     """The observed mask (F, J) from a sidecar; checked against the take it belongs to."""
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise MotionFileError(path, f"cannot read the mask file ({err.strerror or err})") from None
-    except ValueError as err:
-        raise MotionFileError(path, f"not a JSON mask file ({err})") from None
+    doc = read_json_file(path, "mask")
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise MotionFileError(path, f"not a mask sidecar: expected format {FORMAT!r}")
     if doc.get("frames") != n_frames:
