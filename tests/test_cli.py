@@ -431,3 +431,10 @@ def test_clean_never_overwrites_its_input_unless_told_and_then_keeps_the_raw_tak
     assert backup.read_bytes() == raw, "a second in-place clean keeps the first backup: the raw take"
     assert take.read_bytes() != once
     assert main(["clean", str(tmp_path), "--in-place", "--engine", "lerp"]) == 2
+
+
+def test_a_pipeline_says_which_weights_its_stages_used(tmp_path, data_root, capsys):
+    take = data_root / "cmu" / "walk" / "02_01.bvh"
+    assert main(["clean", str(take), "-o", str(tmp_path / "a.bvh"), "--engine", "ebd>ebf"]) == 0
+    line = capsys.readouterr().out
+    assert "(skeleton-specific weights ebd " in line and ", ebf " in line and line.count("/cmu") == 2, line

@@ -1031,7 +1031,7 @@ class Pipeline(Engine):
         -------
         CleanResult
             The last stage's motion; the diagnostics of every stage, those of the earlier
-            ones named ``<stage name>.<name>``.
+            ones named ``<stage name>.<name>``. :attr:`weights_used_` lists the stages'.
 
         Raises
         ------
@@ -1047,4 +1047,8 @@ class Pipeline(Engine):
                 diagnostics[key if last else f"{stage.info.name}.{key}"] = value
             observation = Observation(result.motion)
         assert result is not None
+        # "KIND weights ebd FOLDER, ebf FOLDER"; KIND universal where any stage ran on such
+        used = [(s.info.name, *s.weights_used_.split(" weights ", 1)) for s in self.stages if s.weights_used_]
+        kind = "universal" if any(k == "universal" for _, k, _ in used) else "skeleton-specific"
+        self.weights_used_ = f"{kind} weights " + ", ".join(f"{n} {folder}" for n, _, folder in used) if used else None
         return CleanResult(result.motion, diagnostics)
