@@ -47,10 +47,6 @@ class OwnJoints:
         """(F,) radians: the twist about the up axis of the root's world rotation (F, J, 3, 3)."""
         return heading(rotations[:, 0])
 
-    def lacking(self) -> list[str]:
-        """The image joints the take has none for: none."""
-        return []
-
     def known(self, known: np.ndarray) -> np.ndarray:
         """(F, J) where an image joint's position is known, from where the take joints' are (F, J)."""
         return known
@@ -93,10 +89,6 @@ class CanonicalJoints:
         """(F,) radians: the body's facing from its across direction (roots' rest frames
         differ between exporters)."""
         return facing(image_positions)
-
-    def lacking(self) -> list[str]:
-        """The canonical joints the take's skeleton has none for (optional ones)."""
-        return self.body.mapping.lacking()
 
     def known(self, known: np.ndarray) -> np.ndarray:
         """(F, 21) from the take joints' (F, J); never for a canonical joint the take lacks."""

@@ -220,12 +220,6 @@ class ConvAutoencoderEngine(Engine):
         for group, motions_of_one in enumerate(_by_skeleton(motions)):
             skeleton = motions_of_one[0].skeleton
             imaging = self.imaging(skeleton, layout)
-            if p.universal and (lacking := imaging.lacking()):
-                raise EngineError(
-                    f"engine {self.info.name!r}: a universal variant trains on skeletons with every canonical "
-                    f"joint; {motions_of_one[0].name or 'a training take'} has none for {', '.join(lacking)} "
-                    "(pin them with a mapping file, or leave these takes out)"
-                )
             varies = np.concatenate([m.angles_deg for m in motions_of_one]).std(axis=0) > 1e-9  # (J, 3) per angle
             varies[0] = False
             if not p.universal:  # joints that never move are always known; the others can go missing

@@ -232,11 +232,6 @@ class MSSA(Engine):
         M = self.params.window_frames
         if max(m.n_frames for m in motions) < M:
             raise EngineError(f"mssa: no training motion has the {M} frames a window needs")
-        if self.params.universal and (lacking := self._lacking(motions)):
-            raise EngineError(
-                f"mssa: universal bases train on skeletons with every canonical joint; {lacking} "
-                "(pin them with a mapping file, or leave these takes out)"
-            )
         self.models_ = {space: self._fit_space(motions, space) for space in self._spaces}
         self.fitted_on(motions[0])
         return self
@@ -245,13 +240,6 @@ class MSSA(Engine):
     def _spaces(self) -> tuple[str, ...]:
         """The spaces the weights hold: both, or the positions of universal bases."""
         return ("positions",) if self.params.universal else SPACES
-
-    def _lacking(self, motions: Sequence[Motion]) -> str:
-        """Which training skeletons lack canonical joints, and which ('' for none)."""
-        for m in {m.skeleton.signature(): m for m in motions}.values():
-            if missing := self.humanoid(m.skeleton).lacking():
-                return f"{m.name or 'a training take'} has none for {', '.join(missing)}"
-        return ""
 
     def _positions(self, skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
         """(F, 3K) root-relative positions of a finite channel matrix (F, 3 + 3J): the take's

@@ -443,7 +443,8 @@ class Engine:
         pelvis collapsed into it) and resampled to :attr:`MODEL_FPS` where the class sets
         one; without it they must share one frame rate. A :attr:`skeleton_agnostic`
         variant takes several skeletons, each of which must map onto the canonical
-        humanoid, resampled to :attr:`MODEL_FPS` or else :data:`UNIVERSAL_FPS`.
+        humanoid with every canonical joint, resampled to :attr:`MODEL_FPS` or else
+        :data:`UNIVERSAL_FPS`.
 
         Parameters
         ----------
@@ -468,10 +469,15 @@ class Engine:
         name = self.info.name
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
-        if self.skeleton_agnostic:  # each in its own body view; every skeleton must map
+        if self.skeleton_agnostic:  # each in its own body view; every skeleton must map, whole
             views = [to_body(m, body_skeleton(m.skeleton)) for m in motions]
             for view in {v.skeleton.signature(): v for v in views}.values():
-                self.humanoid(view.skeleton)
+                if lacking := self.humanoid(view.skeleton).lacking():  # a placeholder would train as truth
+                    raise EngineError(
+                        f"engine {name!r}: a universal variant trains on skeletons with every canonical joint; "
+                        f"{view.name or 'a training take'} has none for {', '.join(lacking)} "
+                        "(pin them with a mapping file, or leave these takes out)"
+                    )
             return [resample(v, self.MODEL_FPS or UNIVERSAL_FPS) for v in views]
         first = motions[0]
         for m in motions[1:]:
