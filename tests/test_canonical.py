@@ -52,7 +52,7 @@ def test_the_truth_comes_back_exactly(clip, data_root):
     """Canonical positions of a take, solved back with the take as reference: the take."""
     motion = body_take(clip)
     body = CanonicalBody(map_humanoid(motion.skeleton))
-    root, angles, _ = body.solve(body.positions(motion.positions), motion.positions, motion.angles_deg)
+    root, angles, _ = body.solve(body.positions(motion.positions), motion.root_positions, motion.angles_deg)
     P, _ = forward_kinematics(motion.skeleton, root, angles)
     assert np.abs(P - motion.positions).max() * motion.skeleton.unit_cm < 1e-6
 
@@ -66,7 +66,7 @@ def test_another_pose_is_reached_with_the_unmapped_joints_as_the_reference(clip,
     body = CanonicalBody(map_humanoid(motion.skeleton))
     now, later = slice(0, motion.n_frames - 30), slice(30, None)
     goal = body.positions(motion.positions[later])
-    root, angles, _ = body.solve(goal, motion.positions[now], motion.angles_deg[now])
+    root, angles, _ = body.solve(goal, motion.root_positions[now], motion.angles_deg[now])
     P, _ = forward_kinematics(motion.skeleton, root, angles)
     reached = body.positions(P)
     mapped = body.mapping.mapped

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from workbench.core.humanoid import CANONICAL_JOINTS, CANONICAL_PARENTS, HumanoidMapping
-from workbench.core.kinematics import forward_kinematics, inverse_kinematics
+from workbench.core.kinematics import inverse_kinematics
 from workbench.core.skeleton import Skeleton
 from workbench.engine.canonical import CanonicalBody, facing
 
@@ -109,7 +109,4 @@ class CanonicalJoints:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """As :meth:`OwnJoints.solve`, from decoded canonical positions (F, 21, 3)
         (:meth:`workbench.engine.canonical.CanonicalBody.solve`)."""
-        reference, _ = forward_kinematics(
-            self.skeleton, root_positions, reference_angles, local=ik.get("reference_local")
-        )
-        return self.body.solve(image_positions, reference, reference_angles, **ik)
+        return self.body.solve(image_positions, root_positions, reference_angles, **ik)

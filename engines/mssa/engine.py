@@ -12,7 +12,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
-from workbench.core.kinematics import forward_kinematics, inverse_kinematics
+from workbench.core.kinematics import inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, trained
@@ -331,9 +331,8 @@ class MSSA(Engine):
                 )
             else:  # canonical targets; the joints the take has keep their observed weights
                 canonical = out.reshape(F, -1, 3) + (root_joint * body.scale)[:, None]
-                ref_positions, _ = forward_kinematics(skeleton, root_track[:, :3], reference)
                 root, angles, translations = body.solve(
-                    canonical, ref_positions, reference, reference_joints=short, reference_frames=frames
+                    canonical, root_track[:, :3], reference, reference_joints=short, reference_frames=frames
                 )
                 weight = _take_weights(body, weight, observation.observed)
             out = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations).channels

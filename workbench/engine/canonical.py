@@ -32,7 +32,7 @@ from functools import cached_property
 import numpy as np
 
 from ..core.humanoid import CANONICAL_JOINTS, HumanoidMapping
-from ..core.kinematics import inverse_kinematics
+from ..core.kinematics import forward_kinematics, inverse_kinematics
 
 __all__ = ["CANONICAL_BODY_CM", "CanonicalBody", "facing"]
 
@@ -127,18 +127,23 @@ class CanonicalBody:
         return out
 
     def solve(
-        self, canonical: np.ndarray, reference_positions: np.ndarray, reference_angles_deg: np.ndarray, **ik
+        self, canonical: np.ndarray, root_positions: np.ndarray, reference_angles_deg: np.ndarray, **ik
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Root positions (F, 3), angles (F, J, 3, degrees) and translations of the take's
         skeleton that put its mapped joints at ``canonical`` (F, 21, 3) as far as its bone
-        lengths allow, the :attr:`kept_joints` at the reference's angles (F, J, 3; its
-        positions (F, J, 3) from FK). ``ik``: further arguments of
+        lengths allow, the :attr:`kept_joints` at the reference's angles (F, J, 3), whose
+        positions (the other joints' targets: :meth:`targets`) are their FK on
+        ``root_positions`` (F, 3, file units). ``ik``: further arguments of
         :func:`~workbench.core.kinematics.inverse_kinematics` (``reference_joints`` are
-        added to the kept ones)."""
+        added to the kept ones; ``reference_local``, the reference's local rotations,
+        serves the FK too)."""
         kept = np.union1d(self.kept_joints, np.asarray(ik.pop("reference_joints", ()), int))
+        reference, _ = forward_kinematics(
+            self.skeleton, root_positions, reference_angles_deg, local=ik.get("reference_local")
+        )
         return inverse_kinematics(
             self.skeleton,
-            self.targets(canonical, reference_positions),
+            self.targets(canonical, reference),
             reference_angles_deg,
             reference_joints=kept,
             **ik,
