@@ -76,6 +76,16 @@ def _relative_positions(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
     return (P - P[:, :1]).reshape(F, -1)
 
 
+def _modelled_positions(relative: np.ndarray, body: CanonicalBody | None) -> np.ndarray:
+    """(F, 3K) the positions the bases model, from the take's root-relative positions (F,
+    3J, file units; :func:`_relative_positions`): those themselves, or with ``body`` its
+    canonical joints' (canonical cm; a joint the take lacks at the root)."""
+    if body is None:
+        return relative
+    F = relative.shape[0]
+    return np.nan_to_num(body.positions(relative.reshape(F, -1, 3)), nan=0.0).reshape(F, -1)
+
+
 def _take_weights(body: CanonicalBody, canonical: np.ndarray, observed: np.ndarray) -> np.ndarray:
     """(F, 3J) robust weights of the take's joint positions from the canonical ones (F,
     63): a mapped joint's are its canonical joint's, the others' 1 where observed."""
@@ -206,7 +216,7 @@ class MSSA(Engine):
         """(candidate columns, (F, len(columns)) channels) of a clean motion in ``space``."""
         skeleton = motion.skeleton
         if space == "positions":
-            rel = self._positions(skeleton, motion.channels)
+            rel = _modelled_positions(_relative_positions(skeleton, motion.channels), self._body(skeleton))
             return np.arange(rel.shape[1]), rel
         cols = angle_columns(skeleton)
         return cols, unwrap_deg(motion.channels[:, cols])
@@ -241,16 +251,9 @@ class MSSA(Engine):
         """The spaces the weights hold: both, or the positions of universal bases."""
         return ("positions",) if self.params.universal else SPACES
 
-    def _positions(self, skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
-        """(F, 3K) root-relative positions of a finite channel matrix (F, 3 + 3J): the take's
-        joints in file units, or universal: the canonical joints in canonical cm (a joint
-        the take lacks at the root)."""
-        rel = _relative_positions(skeleton, channels)
-        if not self.params.universal:
-            return rel
-        body = CanonicalBody(self.humanoid(skeleton))
-        canonical = body.positions(rel.reshape(rel.shape[0], -1, 3))
-        return np.nan_to_num(canonical, nan=0.0).reshape(rel.shape[0], -1)
+    def _body(self, skeleton: Skeleton) -> CanonicalBody | None:
+        """The canonical body universal bases see a take of ``skeleton`` as; None for others."""
+        return CanonicalBody(self.humanoid(skeleton)) if self.params.universal else None
 
     # -- cleaning ---------------------------------------------------------------------
     def clean(self, observation: Observation, /) -> CleanResult:
@@ -269,11 +272,12 @@ class MSSA(Engine):
         raw, mask = observation.motion.channels, observation.channel_observed
         X = bridge_gaps(observation)
         F = X.shape[0]
-        body = CanonicalBody(self.humanoid(skeleton)) if self.params.universal else None
+        body = self._body(skeleton)
         if self.params.space == "angles":
             Y, observed = X, mask
         else:
-            Y = self._positions(skeleton, X)
+            relative = _relative_positions(skeleton, X)
+            Y = _modelled_positions(relative, body)
             known = _ancestors_observed(skeleton, observation.observed)
             observed = np.repeat(known if body is None else body.known(known), 3, axis=1)
 
@@ -320,7 +324,7 @@ class MSSA(Engine):
                 skeleton,
                 X,
                 observation.observed,
-                _relative_positions(skeleton, X).reshape(F, -1, 3),
+                relative.reshape(F, -1, 3),
                 self.params.short_lever_cm,
                 self.params.angle_lever_cm,
             )
