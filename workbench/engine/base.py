@@ -937,8 +937,8 @@ class Engine:
             return None
         if self.loaded_from_ is None or self.loaded_from_.parent != self.default_weights_dir():
             return None
-        if skeleton.signature() in self.committed_weights():
-            return None
+        if skeleton.signature() == self.skeleton_signature_ or skeleton.signature() in self.committed_weights():
+            return None  # weights of its own (loaded already: no manifests read on every clean)
         if self._universal_twin is None:
             try:
                 params = dataclasses.replace(self.params, **{UNIVERSAL: True})
