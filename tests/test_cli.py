@@ -103,6 +103,18 @@ def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path,
     assert clips and all(c.startswith("cmu-daz/kick/10_0") for c in clips)
 
 
+def test_the_embedded_takes_bench_out_of_the_box_and_are_never_trained_on(embedded_root, tmp_path, capsys):
+    js = tmp_path / "b.json"
+    args = ["--data", str(embedded_root)]
+    assert main(["bench", *args, "--engines", "kalman", "--corrupt", "angular:0.5", "--json", str(js)]) == 0
+    assert "using the two CMU takes embedded in the package" in capsys.readouterr().err
+    assert json.loads(js.read_text())["clips"] == ["cmu/jump/16_06", "cmu/walk/35_31"]
+    assert main(["train", "kalman-learned", *args, "--out", str(tmp_path / "w")]) == 2
+    err = capsys.readouterr().err
+    assert "test clips, never trained on" in err and "subjects 02, 03, 05, 06, 07 and 09" in err
+    assert not (tmp_path / "w").exists()
+
+
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert (

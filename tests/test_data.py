@@ -103,15 +103,27 @@ def test_data_root_order_and_errors(tmp_path, monkeypatch):
         find_data_root(tmp_path / "empty")  # not silently replaced by the next root
 
 
-def test_no_data_message_says_what_to_do(tmp_path, monkeypatch):
+def test_without_data_the_embedded_takes_are_the_root_of_last_resort(tmp_path, monkeypatch):
     import workbench.data.roots as roots
 
     monkeypatch.delenv("WORKBENCH_DATA", raising=False)
     monkeypatch.setattr(roots, "REPO_ROOT", tmp_path / "repo")
+    assert roots.find_data_root() == roots.EMBEDDED_ROOT and roots.is_embedded(roots.EMBEDDED_ROOT)
+    monkeypatch.setattr(roots, "EMBEDDED_ROOT", tmp_path / "no-embedded")
     with pytest.raises(DataNotFoundError) as info:
         roots.find_data_root()
     msg = str(info.value)
     assert "--data" in msg and "WORKBENCH_DATA" in msg and "mocap.cs.cmu.edu" in msg
+    # the clips the splits use, not a package that holds none of them
+    assert "16, 35 and 127" in msg and "splits/cmu.json" in msg and "01-09" not in msg
+
+
+def test_the_embedded_takes_are_the_default_take_and_a_jump_of_the_test_split(embedded_root):
+    clips = catalogue(embedded_root)
+    assert [(c.id, c.split, c.frames) for c in clips] == [("cmu/jump/16_06", "test", 408), ("cmu/walk/35_31", "test", 422)]
+    walk = clips[1].load()
+    assert walk.n_frames == 421 and walk.fps == 120.0 and walk.skeleton.n_joints == 31
+    assert (embedded_root / "cmu" / "README.md").read_text().count("mocap.cs.cmu.edu") >= 1
 
 
 def test_find_clip_errors():

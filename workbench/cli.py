@@ -53,10 +53,30 @@ def split_engine_specs(values: list[str]) -> list[str]:
 
 
 # -- data -------------------------------------------------------------------------------
-def cmd_data(args) -> int:
-    from .data import SPLITS, catalogue, find_data_root, select
+def _data_root(args, training: bool = False) -> Path:
+    """The data root of ``--data`` (found as :func:`find_data_root` does). The embedded
+    takes are said to be in use, and refused for training: they are test clips."""
+    from .data import CMU_CLIPS, find_data_root, is_embedded
 
     root = find_data_root(args.data)
+    if is_embedded(root):
+        if training:
+            raise UserError(
+                "no data folder found (--data, $WORKBENCH_DATA, datasets/, ../shared/data), and the two CMU "
+                f"takes embedded in the package are test clips, never trained on.\n{CMU_CLIPS}"
+            )
+        print(
+            "note: no data folder found (--data, $WORKBENCH_DATA, datasets/, ../shared/data); "
+            "using the two CMU takes embedded in the package (cmu/walk/35_31, cmu/jump/16_06)",
+            file=sys.stderr,
+        )
+    return root
+
+
+def cmd_data(args) -> int:
+    from .data import SPLITS, catalogue, select
+
+    root = _data_root(args)
     clips = select(catalogue(root), args.split, dataset=args.dataset)
     print(f"data root: {root}")
     wide = {"id": 4, "category": 8, "who": 13}
@@ -277,9 +297,9 @@ def cmd_clean(args) -> int:
 def _bench_clips(args):
     """The catalogue clips to benchmark: of every dataset (or ``--dataset``), those in
     ``--split``, or all of them where none of the matching clips is in a split."""
-    from .data import catalogue, find_data_root, select
+    from .data import CMU_CLIPS, catalogue, is_embedded, select
 
-    root = find_data_root(args.data)
+    root = _data_root(args)
     matched = select(catalogue(root), None, dataset=args.dataset, pattern=args.clips)
     if any(c.split for c in matched):
         chosen = select(matched, args.split)
@@ -293,6 +313,7 @@ def _bench_clips(args):
     if not chosen:
         raise UserError(
             f"no clips match split={args.split!r} dataset={args.dataset!r} clips={args.clips!r} under {root}"
+            + (f"\n{CMU_CLIPS}" if is_embedded(root) else "")
         )
     return chosen
 
@@ -377,7 +398,7 @@ COMMITTED_UNIVERSAL_DATASETS = "cmu,bandai"
 
 def cmd_train(args) -> int:
     from . import registry
-    from .data import catalogue, find_data_root, select, share
+    from .data import catalogue, select, share
     from .engine import WEIGHTS_OPTION
     from .engine.base import UNIVERSAL
     from .training import train_engine
@@ -393,7 +414,7 @@ def cmd_train(args) -> int:
             f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
             "(--out says where the new weights go)"
         )
-    root = find_data_root(args.data)
+    root = _data_root(args, training=True)
     clips = catalogue(root)
     dataset = args.dataset
     if dataset is None and len({c.dataset for c in select(clips, "train")}) > 1:

@@ -11,7 +11,7 @@ from .catalogue import (
     share,
     without_reference_frame,
 )
-from .roots import DataNotFoundError, find_data_root
+from .roots import CMU_CLIPS, EMBEDDED_ROOT, DataNotFoundError, find_data_root, is_embedded
 
 __all__ = [
     "SPLITS",
@@ -24,5 +24,8 @@ __all__ = [
     "has_reference_frame",
     "without_reference_frame",
     "find_data_root",
+    "is_embedded",
+    "EMBEDDED_ROOT",
+    "CMU_CLIPS",
     "DataNotFoundError",
 ]

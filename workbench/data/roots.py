@@ -2,7 +2,9 @@
 
 Data roots, first found wins: an explicit ``--data`` folder, the ``WORKBENCH_DATA``
 environment variable, ``datasets/`` in the repository (user data, gitignored), and
-``../shared/data`` beside the repository (the team's data, used by CI). A root is a
+``../shared/data`` beside the repository (the team's data, used by CI), and last the two
+CMU takes embedded in the package (:data:`EMBEDDED_ROOT`), so that the app and the
+benchmark run on a machine with no data at all. A root is a
 folder of datasets (``cmu/``, ``cmu-daz/``, each with a MANIFEST.csv), one dataset, or
 any folder of BVH (or AMC) files; linked folders inside a root are followed.
 """
@@ -17,15 +19,23 @@ from ..io import MOTION_SUFFIXES
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 ENV_VAR = "WORKBENCH_DATA"
+#: two short CMU takes of the test split shipped with the package (README.md there)
+EMBEDDED_ROOT = Path(__file__).resolve().parent / "embedded"
 
 HOW_TO_GET_DATA = """\
 No motion data found. Looked in:
 {looked}
 Point the workbench at a folder of BVH files with --data DIR or the {env} environment
 variable, or put clips under datasets/ in the repository (see datasets/README.md).
-The CMU clips this project uses are the cgspeed BVH conversion of the CMU Graphics Lab
-Motion Capture Database (http://mocap.cs.cmu.edu): download the BVH files of subjects
-02-09 there (cmuconvert-mb2-01-09) and unpack them under datasets/cmu/<category>/."""
+{clips}"""
+
+#: which CMU clips the splits use and where to get them, for the messages about missing data
+CMU_CLIPS = """\
+The CMU clips this project's splits use are the cgspeed BVH conversion of the CMU Graphics
+Lab Motion Capture Database (http://mocap.cs.cmu.edu, files SS_TT.bvh): for training,
+subjects 02, 03, 05, 06, 07 and 09; for testing, subjects 16, 35 and 127; the clip list is
+workbench/data/splits/cmu.json. Put them under datasets/cmu/<category>/ (walk, jog, run,
+jump, other) with the MANIFEST.csv of workbench/data/embedded/cmu/ extended to them."""
 
 
 class DataNotFoundError(FileNotFoundError):
@@ -61,6 +71,7 @@ def candidate_roots(explicit: str | Path | None = None) -> list[tuple[str, Path]
         out.append((ENV_VAR, Path(os.environ[ENV_VAR])))
     out.append(("datasets/", REPO_ROOT / "datasets"))
     out.append(("../shared/data", REPO_ROOT.parent / "shared" / "data"))
+    out.append(("embedded", EMBEDDED_ROOT))
     return out
 
 
@@ -81,4 +92,9 @@ def find_data_root(explicit: str | Path | None = None) -> Path:
         if _has_motion_files(folder):
             return folder.resolve()
         looked.append(f"  {origin:15s} {folder}")
-    raise DataNotFoundError(HOW_TO_GET_DATA.format(looked="\n".join(looked), env=ENV_VAR))
+    raise DataNotFoundError(HOW_TO_GET_DATA.format(looked="\n".join(looked), env=ENV_VAR, clips=CMU_CLIPS))
+
+
+def is_embedded(root: str | Path) -> bool:
+    """True when ``root`` is the package's embedded takes, not a data folder of the user's."""
+    return Path(root).resolve() == EMBEDDED_ROOT
