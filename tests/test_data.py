@@ -120,7 +120,10 @@ def test_without_data_the_embedded_takes_are_the_root_of_last_resort(tmp_path, m
 
 def test_the_embedded_takes_are_the_default_take_and_a_jump_of_the_test_split(embedded_root):
     clips = catalogue(embedded_root)
-    assert [(c.id, c.split, c.frames) for c in clips] == [("cmu/jump/16_06", "test", 408), ("cmu/walk/35_31", "test", 422)]
+    assert [(c.id, c.split, c.frames) for c in clips] == [
+        ("cmu/jump/16_06", "test", 408),
+        ("cmu/walk/35_31", "test", 422),
+    ]
     walk = clips[1].load()
     assert walk.n_frames == 421 and walk.fps == 120.0 and walk.skeleton.n_joints == 31
     assert (embedded_root / "cmu" / "README.md").read_text().count("mocap.cs.cmu.edu") >= 1
