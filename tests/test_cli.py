@@ -80,6 +80,7 @@ def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, da
     assert not (tmp_path / "o.bvh").exists()
 
 
+@pytest.mark.usefixtures("data_root")
 def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert (
@@ -115,6 +116,7 @@ def test_the_embedded_takes_bench_out_of_the_box_and_are_never_trained_on(embedd
     assert not (tmp_path / "w").exists()
 
 
+@pytest.mark.usefixtures("data_root")
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert (
@@ -165,6 +167,7 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     assert set(doc["reference_glitches"]) == {"cmu/run/35_26", "cmu/run/16_46"}
 
 
+@pytest.mark.usefixtures("data_root")
 def test_data_lists_a_dataset_with_its_styles_and_splits(capsys):
     assert main(["data", "--dataset", "bandai", "--split", "validation"]) == 0
     out = capsys.readouterr().out
@@ -172,6 +175,7 @@ def test_data_lists_a_dataset_with_its_styles_and_splits(capsys):
     assert out.splitlines()[-1] == "bandai: 75 clips (75 validation), 13,338 frames at 30 fps"
 
 
+@pytest.mark.usefixtures("data_root")
 def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_refusals(tmp_path, capsys):
     """Every dataset's test split, a table each; a take too short for the block (Bandai's
     135-frame walk_happy_002) is left out with a note, not the run; a trained engine
@@ -231,6 +235,7 @@ def test_bench_covers_every_dataset_s_test_split_skips_short_takes_and_names_ref
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("data_root")
 def test_train_on_the_studio_takes_records_their_rate_skeleton_and_terms(tmp_path):
     """Bandai's Hips under joint_Root trains as the body view rooted at the Hips, at the
     takes' 30 fps; the manifest carries the data set's non-commercial terms."""

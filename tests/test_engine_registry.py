@@ -157,6 +157,7 @@ def test_every_trained_engine_has_its_own_weights_folder_and_its_committed_weigh
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("data_root")
 def test_train_writes_its_variant_s_folder_with_a_manifest_of_what_it_used(tmp_path, monkeypatch, capsys):
     import json
 
