@@ -76,11 +76,12 @@ def test_engines():
 
 
 @pytest.fixture(scope="session")
-def tiny_walk(data_root):
-    """CMU walk 35_31 (test split), first 120 frames after the T-pose frame."""
+def tiny_walk(embedded_root):
+    """CMU walk 35_31 (test split, embedded in the package, so the app's tests run on a
+    machine without the team's data), first 120 frames after the T-pose frame."""
     from workbench.data import find_clip
 
-    return find_clip("cmu/walk/35_31", data_root).load().slice(0, FRAMES)
+    return find_clip("cmu/walk/35_31", embedded_root).load().slice(0, FRAMES)
 
 
 @pytest.fixture(scope="session")
