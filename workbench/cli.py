@@ -153,6 +153,30 @@ def cmd_skeleton(args) -> int:
     return 0
 
 
+def cmd_inspect(args) -> int:
+    from .data import without_reference_frame
+    from .data.inspection import inspect_motion
+
+    recorded = _read(args.take)
+    motion = without_reference_frame(recorded)
+    dropped = recorded.n_frames - motion.n_frames
+    found = inspect_motion(motion)
+    report = found.to_json() | {"take": args.take, "reference_frames_dropped": dropped}
+    if args.json:
+        print(json.dumps(report, indent=1))
+        return 0
+    if dropped:
+        print("note: dropped frame 0, a T-pose reference frame; frames below count from the next", file=sys.stderr)
+    intervals = found.intervals()
+    print(
+        f"{args.take}: {motion.n_frames} frames at {motion.fps:g} fps; {report['flagged_frames']} suspicious "
+        f"frames in {len(intervals)} intervals"
+    )
+    for interval in intervals:
+        print(f"  {interval}")
+    return 0
+
+
 def cmd_corrupt(args) -> int:
     from .corruption import parse_corruption
     from .data import without_reference_frame
@@ -542,6 +566,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("take", help="a BVH/AMC take")
     sp.add_argument("--mapping", metavar="FILE", help='JSON pinning canonical joints, e.g. {"neck": "Neck1"}')
     sp.set_defaults(func=cmd_skeleton)
+
+    sp = sub.add_parser("inspect", help="which frames of a take (no ground truth needed) look broken, and why")
+    sp.add_argument("take", help="a BVH/AMC take")
+    sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
+    sp.set_defaults(func=cmd_inspect)
 
     sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
     sp.add_argument("input")
