@@ -52,7 +52,7 @@ def test_gaps_filled_linearly_in_the_file_are_found(embedded_walk, tmp_path):
     assert not inspect_motion(embedded_walk).flags["linear"].any()
 
 
-def test_a_flip_is_a_turn_and_a_stretchy_bone_is_flagged(embedded_walk):
+def test_a_flip_is_a_turn(embedded_walk):
     angles = embedded_walk.angles_deg.copy()
     j = embedded_walk.skeleton.index("LeftForeArm")
     angles[100:102, j, 0] += 170.0

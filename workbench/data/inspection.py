@@ -1,6 +1,6 @@
 """Which frames of a take are broken: suspicious intervals, each with its reason.
 
-Three rules that need no ground truth and no engine, each flagging samples (frame, joint):
+Four rules that need no ground truth and no engine, each flagging samples (frame, joint):
 
 - ``spike``: a joint's rotation far from where its neighbours put it. The prediction is the
   geodesic midpoint of frames t-1 and t+1, and of t-2 and t+2 (a spike two frames long
@@ -13,8 +13,11 @@ Three rules that need no ground truth and no engine, each flagging samples (fram
 - ``linear``: a moving joint whose channels lie exactly on a line, to the file's printed
   precision, for at least :data:`LINEAR_MIN_FRAMES` frames: a gap an exporter filled by
   linear interpolation (real motion always bends).
-- ``bone``: a translated joint (position channels) other than the body root whose bone length leaves its median by
-  more than :data:`BONE_TOLERANCE` (a stretchy rig, a solver that lets bones grow).
+- ``bone``: a translated joint (position channels) other than the body root whose bone
+  length leaves its median by more than :data:`BONE_TOLERANCE` (a stretchy rig, a solver
+  that lets bones grow).
+
+Each rule is a function ``motion -> (flags (F, J) bool, scores (F, J) float)``.
 
 Frames are 0-based frames of the motion; an interval is ``first`` to ``last`` inclusive.
 """
@@ -28,7 +31,7 @@ import numpy as np
 from ..core.kinematics import local_rotations
 from ..core.motion import Motion, channel_joints
 from ..core.rotations import matrix_to_quaternion
-from .quality import reference_glitches
+from .quality import reference_glitches, runs
 
 #: degrees a rotation must be off its neighbours' prediction to be a spike
 SPIKE_FLOOR_DEG = 20.0
@@ -40,7 +43,7 @@ LINEAR_MIN_FRAMES = 2
 LINEAR_MIN_STEP = 0.01
 #: relative change of a bone's length that counts as a stretch
 BONE_TOLERANCE = 0.02
-#: flagged frames of one rule fewer than this many frames apart are one interval
+#: flagged frames of one rule at most this many frames apart are one interval
 MERGE_FRAMES = 3
 
 REASONS = {
@@ -99,15 +102,16 @@ def spike_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return flags, scores
 
 
-def linear_flags(motion: Motion) -> np.ndarray:
-    """(F, J) bool: samples of the ``linear`` rule. A channel's second difference counts as
-    zero within four half-units of the 6th significant digit (or of 1e-4), the rounding
-    of a file printed to that precision."""
+def linear_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """(flags (F, J) bool, length in frames of the straight run each flag is in) of the
+    ``linear`` rule. A channel's second difference counts as zero within 2.5 units of the
+    6th significant digit (at least 2.5e-4): rounding a file's values to that precision
+    moves a second difference by at most 2 units."""
     X = motion.channels
     F, J = motion.n_frames, motion.skeleton.n_joints
-    flags = np.zeros((F, J), bool)
+    flags, lengths = np.zeros((F, J), bool), np.zeros((F, J))
     if F < 3:
-        return flags
+        return flags, lengths
     cols = channel_joints(motion.skeleton)
     magnitude = np.floor(np.log10(np.abs(X[1:-1]) + 1e-12))
     tol = np.maximum(2.5e-4, 2.5 * 10.0 ** (magnitude - 5))
@@ -119,10 +123,11 @@ def linear_flags(motion: Motion) -> np.ndarray:
     np.logical_or.at(any_moving, (slice(None), cols), moving)
     inner = all_straight & any_moving
     for j in np.flatnonzero(inner.any(0)):
-        for run in _runs(np.flatnonzero(inner[:, j]), 1):
+        for run in runs(np.flatnonzero(inner[:, j])):
             if run.size >= LINEAR_MIN_FRAMES:
                 flags[run + 1, j] = True
-    return flags
+                lengths[run + 1, j] = run.size
+    return flags, lengths
 
 
 def bone_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
@@ -150,13 +155,6 @@ def turn_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return flags, scores
 
 
-def _runs(frames: np.ndarray, gap: int) -> list[np.ndarray]:
-    """Sorted frame indices split where consecutive ones are more than ``gap`` apart."""
-    if frames.size == 0:
-        return []
-    return np.split(frames, np.flatnonzero(np.diff(frames) > gap) + 1)
-
-
 @dataclass(frozen=True)
 class Inspection:
     """What :func:`inspect_motion` found: per rule, the flagged samples (F, J) and scores."""
@@ -174,7 +172,7 @@ class Inspection:
         names = self.motion.skeleton.names
         out = []
         for reason, flags in self.flags.items():
-            for run in _runs(np.flatnonzero(flags.any(1)), MERGE_FRAMES):
+            for run in runs(np.flatnonzero(flags.any(1)), MERGE_FRAMES):
                 window = flags[run[0] : run[-1] + 1]
                 joints = tuple(names[j] for j in np.flatnonzero(window.any(0)))
                 score = float(self.scores[reason][run[0] : run[-1] + 1][window].max())
@@ -195,14 +193,11 @@ class Inspection:
         }
 
 
+#: every rule by its reason (the keys of :data:`REASONS`)
+RULES = {"spike": spike_flags, "turn": turn_flags, "linear": linear_flags, "bone": bone_flags}
+
+
 def inspect_motion(motion: Motion) -> Inspection:
     """Run every rule on ``motion`` (a take as recorded: no ground truth needed)."""
-    spike, spike_score = spike_flags(motion)
-    turn, turn_score = turn_flags(motion)
-    linear = linear_flags(motion)
-    bone, stretch = bone_flags(motion)
-    return Inspection(
-        motion,
-        {"spike": spike, "turn": turn, "linear": linear, "bone": bone},
-        {"spike": spike_score, "turn": turn_score, "linear": linear.astype(float), "bone": stretch},
-    )
+    found = {reason: rule(motion) for reason, rule in RULES.items()}
+    return Inspection(motion, {r: f for r, (f, _) in found.items()}, {r: s for r, (_, s) in found.items()})

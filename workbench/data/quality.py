@@ -41,6 +41,13 @@ class Glitch:
         return f"{self.joint} turns {self.turn_deg:.0f} degrees in one frame (frames {self.first}-{self.last})"
 
 
+def runs(indices: np.ndarray, max_gap: int = 1) -> list[np.ndarray]:
+    """Sorted indices split into runs: consecutive ones at most ``max_gap`` apart stay together."""
+    if indices.size == 0:
+        return []
+    return np.split(indices, np.flatnonzero(np.diff(indices) > max_gap) + 1)
+
+
 def reference_glitches(motion: Motion, max_turn_dps: float = MAX_TURN_DPS) -> list[Glitch]:
     """The places where a joint of ``motion`` turns faster than ``max_turn_dps`` between
     two consecutive frames, by joint, then frame."""
@@ -51,7 +58,6 @@ def reference_glitches(motion: Motion, max_turn_dps: float = MAX_TURN_DPS) -> li
     found = []
     for k, j in enumerate(joints):
         fast = np.flatnonzero(turns[:, k] > max_turn_dps / motion.fps)
-        if fast.size:
-            for run in np.split(fast, np.flatnonzero(np.diff(fast) >= MERGE_FRAMES) + 1):
-                found.append(Glitch(skeleton.names[j], int(run[0]), int(run[-1]) + 1, float(turns[run, k].max())))
+        for run in runs(fast, MERGE_FRAMES - 1):
+            found.append(Glitch(skeleton.names[j], int(run[0]), int(run[-1]) + 1, float(turns[run, k].max())))
     return found
