@@ -79,3 +79,61 @@ def test_inspect_prints_the_intervals_and_writes_json(embedded_root, capsys):
     assert report["frames"] == 421 and report["reference_frames_dropped"] == 1
     assert all({"reason", "first", "last", "joints", "score"} <= set(i) for i in report["intervals"])
     assert main(["inspect", str(embedded_root / "missing.bvh")]) == 2
+
+
+def test_the_samples_a_robust_engine_rejects_are_the_spikes(embedded_walk):
+    observation = parse_corruption("outliers:0.01").apply(embedded_walk, seed=1)
+    truth = _pose_error_deg(embedded_walk, observation.motion) > 10.0
+    weight = registry.create("mssa").clean(observation).diagnostics["robust_weight"]
+    flags = inspect_motion(observation.motion, robust_weights=[weight]).flags["rejected"]
+    assert (flags & truth).sum() / truth.sum() >= 0.95 and (flags & truth).sum() / flags.sum() >= 0.8
+    # the weights of the joints' positions (mssa in positions) map to the joints too
+    positions = registry.create("mssa:space=positions").clean(observation).diagnostics["robust_weight"]
+    assert positions.shape[1] == 3 * embedded_walk.skeleton.n_joints
+    assert inspect_motion(observation.motion, robust_weights=[positions]).flags["rejected"].any()
+    with pytest.raises(ValueError, match="fit neither"):
+        inspect_motion(observation.motion, robust_weights=[weight[:, :5]])
+
+
+def test_engines_that_disagree_and_missing_samples_are_intervals(embedded_walk):
+    sk = embedded_walk.skeleton
+    points = embedded_walk.positions * sk.unit_cm
+    moved = points.copy()
+    hand = sk.index("LeftHand")
+    moved[200:211, hand] += [0.0, 8.0, 0.0]  # one engine puts the hand 8 cm higher for 11 frames
+    observed = np.ones((embedded_walk.n_frames, sk.n_joints), bool)
+    observed[50:60, sk.index("RightFoot")] = False
+    found = inspect_motion(embedded_walk, observed, cleaned_points_cm=[points, moved])
+    disagree = [(i.first, i.last, i.joints) for i in found.intervals() if i.reason == "disagree"]
+    assert disagree == [(200, 210, ("LeftHand",))]
+    assert [(i.first, i.last, i.joints) for i in found.intervals() if i.reason == "missing"] == [
+        (50, 59, ("RightFoot",))
+    ]
+    assert "disagree" not in inspect_motion(embedded_walk, cleaned_points_cm=[points]).flags  # needs two
+
+
+def test_inspect_reads_the_mask_sidecar_and_runs_engines(embedded_walk, tmp_path, capsys):
+    take = tmp_path / "take.bvh"
+    assert main(["corrupt", str(_write(embedded_walk, tmp_path)), "-o", str(take), "--corrupt", "outliers:0.01"]) == 0
+    capsys.readouterr()
+    assert main(["inspect", str(take), "--engine", "mssa", "--engine", "kalman", "--json"]) == 0
+    reasons = {i["reason"] for i in json.loads(capsys.readouterr().out)["intervals"]}
+    assert {"spike", "rejected", "disagree"} <= reasons
+    assert main(["inspect", str(take), "--mask", str(tmp_path / "nope.json")]) == 2
+    assert main(["inspect"]) == 2 and "needs a TAKE" in capsys.readouterr().err
+
+
+def _write(motion, folder):
+    path = folder / "clean.bvh"
+    write_bvh(path, motion)
+    return path
+
+
+def test_inspect_measures_its_flags_on_corrupted_clips(embedded_root, capsys):
+    argv = ["inspect", "--measure", "--data", str(embedded_root), "--clips", "cmu/walk/*", "--engine", "mssa"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    rows = {tuple(c.strip() for c in line.split("|")[1:3]): line for line in out.splitlines() if line.startswith("| ")}
+    assert {("spikes", "spike"), ("spikes", "rejected"), ("linear fills", "linear"), ("glitches", "any")} <= set(rows)
+    recall, precision = (float(v) for v in rows[("spikes", "spike")].split("|")[3:5])
+    assert recall >= 0.9 and precision >= 0.8

@@ -154,19 +154,36 @@ def cmd_skeleton(args) -> int:
 
 
 def cmd_inspect(args) -> int:
+    if args.measure:
+        return _measure_inspection(args)
+    if args.take is None:
+        raise UserError("inspect needs a TAKE, or --measure")
+    from . import registry
+    from .core.motion import Observation
     from .data import without_reference_frame
     from .data.inspection import inspect_motion
+    from .io.mask import read_mask
 
     recorded = _read(args.take)
     motion = without_reference_frame(recorded)
     dropped = recorded.n_frames - motion.n_frames
-    found = inspect_motion(motion)
+    mask = Path(args.mask or args.take + ".mask.json")
+    observed = read_mask(mask, motion.skeleton, motion.n_frames) if args.mask or mask.exists() else None
+    weights, points = [], []
+    for spec in args.engine or []:
+        result = registry.create(spec).clean(Observation(motion, observed))
+        points.append(result.motion.positions * motion.skeleton.unit_cm)
+        if "robust_weight" in result.diagnostics:
+            weights.append(result.diagnostics["robust_weight"])
+    found = inspect_motion(motion, observed, weights, points)
     report = found.to_json() | {"take": args.take, "reference_frames_dropped": dropped}
     if args.json:
         print(json.dumps(report, indent=1))
         return 0
     if dropped:
         print("note: dropped frame 0, a T-pose reference frame; frames below count from the next", file=sys.stderr)
+    if observed is not None:
+        print(f"note: the missing samples are those {mask} lists", file=sys.stderr)
     intervals = found.intervals()
     print(
         f"{args.take}: {motion.n_frames} frames at {motion.fps:g} fps; {report['flagged_frames']} suspicious "
@@ -174,6 +191,20 @@ def cmd_inspect(args) -> int:
     )
     for interval in intervals:
         print(f"  {interval}")
+    return 0
+
+
+def _measure_inspection(args) -> int:
+    from .evaluate import inspection_markdown, measure_inspection
+
+    chosen = _bench_clips(args)
+    seeds = list(range(args.seed0, args.seed0 + args.seeds))
+    print(f"measuring inspect on {len(chosen)} clips x {len(seeds)} seeds", file=sys.stderr)
+    for name in sorted({c.dataset for c in chosen}):
+        clips = [(c.id, c.load()) for c in chosen if c.dataset == name]
+        print(f"{name} ({len(clips)} clips, split {args.split}, {len(seeds)} seeds):")
+        print(inspection_markdown(measure_inspection(clips, seeds, args.engine or [])))
+        print()
     return 0
 
 
@@ -504,7 +535,8 @@ def cmd_gui(args) -> int:
     from .app.main import run_gui
     from .corruption import parse_corruption
 
-    parse_corruption(args.corrupt)  # a bad spec stops here, with its message
+    if args.corrupt is not None:
+        parse_corruption(args.corrupt)  # a bad spec stops here, with its message
     return run_gui(args.clip, args.corrupt, args.seed, split_engine_specs(args.engine) if args.engine else None)
 
 
@@ -554,6 +586,19 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--data", metavar="DIR", help="data root (default: $WORKBENCH_DATA, datasets/, ../shared/data)")
         sp.add_argument("--dataset", metavar="NAME", help=dataset_help)
 
+    def clip_options(sp, default_split: str):
+        """The catalogue clips and seeds a benchmark runs on."""
+        sp.add_argument(
+            "--split",
+            choices=[*SPLITS, "all"],
+            default=default_split,
+            help=f"the clips of this split of every dataset that has one (default: {default_split})",
+        )
+        data_opt(sp)
+        sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
+        sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
+        sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
+
     sp = sub.add_parser("data", help="list the clips and their train/validation/test split")
     data_opt(sp)
     sp.add_argument("--split", choices=[*SPLITS, "all"], default="all")
@@ -568,8 +613,22 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_skeleton)
 
     sp = sub.add_parser("inspect", help="which frames of a take (no ground truth needed) look broken, and why")
-    sp.add_argument("take", help="a BVH/AMC take")
+    sp.add_argument("take", nargs="?", help="a BVH/AMC take")
     sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
+    sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: TAKE.mask.json if present)")
+    sp.add_argument(
+        "--engine",
+        action="append",
+        metavar="SPEC",
+        help="clean with this engine too (repeatable): a robust one's rejected samples, two or more's disagreement",
+    )
+    sp.add_argument(
+        "--measure",
+        action="store_true",
+        help="instead of a take: recall and precision of the flags on corrupted catalogue clips (spikes, linear "
+        "fills, capture glitches)",
+    )
+    clip_options(sp, default_split="test")
     sp.set_defaults(func=cmd_inspect)
 
     sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
@@ -607,16 +666,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
     sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
     sp.add_argument("--corrupt", required=True, metavar="SPEC")
-    sp.add_argument(
-        "--split",
-        choices=[*SPLITS, "all"],
-        default="test",
-        help="the clips of this split of every dataset that has one (default: test)",
-    )
-    data_opt(sp)
-    sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
-    sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
-    sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
+    clip_options(sp, default_split="test")
     sp.add_argument(
         "--per-clip",
         choices=METRICS,
@@ -669,9 +719,11 @@ def build_parser() -> argparse.ArgumentParser:
             help=f"engine spec, repeatable (default: those of {', '.join(DEFAULT_ENGINES)} that load)",
         )
 
-    sp = sub.add_parser("gui", help="open the desktop app (also: workbench with no arguments)")
+    sp = sub.add_parser(
+        "gui", help="open the desktop app (also: workbench with no arguments); with no take, the last one shown"
+    )
     take_opts(sp)
-    sp.set_defaults(func=cmd_gui)
+    sp.set_defaults(func=cmd_gui, clip=None, corrupt=None, seed=None)
 
     sp = sub.add_parser("report", help="the app's views and plots as one figure (PNG or PDF), headless")
     take_opts(sp)

@@ -267,3 +267,126 @@ def run_benchmark(
             summary["peak_mb"] = max(result.peaks[spec].values())
         result.summary[spec] = summary
     return result
+
+
+# -- inspection -------------------------------------------------------------------------
+#: the corrupted cases ``workbench inspect --measure`` scores the flags on: (name,
+#: corruption, reasons scored). ``spikes``: the truth is every sample whose rotation the
+#: outliers moved by more than :data:`SPIKE_TRUTH_DEG`. ``linear fills``: the gaps filled
+#: by ``lerp`` and printed at 6 significant digits, as an exporter fills and prints them, and
+#: read back without a mask; the truth is every filled sample (a one-frame fill is a
+#: point on any curve, and a hold at a take's ends does not move: those are the misses).
+#: ``glitches``: the clean take itself, whose truth is its capture glitches
+#: (:func:`workbench.data.quality.reference_glitches`), scored on every rule's flags.
+INSPECTION_CASES = (
+    ("spikes", "outliers:0.01", ("spike", "turn", "rejected", "disagree")),
+    ("linear fills", "gaps:0.01", ("linear",)),
+    ("glitches", "none", ("spike", "turn", "linear", "bone")),
+)
+SPIKE_TRUTH_DEG = 10.0  # every outlier turns its joint by at least 30 degrees
+#: significant digits the linear fills are printed with
+FILL_DIGITS = 6
+
+
+@dataclass
+class FlagCounts:
+    """True and false positives and misses of flags against a truth, per sample (frame,
+    joint) and per frame (any joint)."""
+
+    samples: np.ndarray = field(default_factory=lambda: np.zeros(3, int))
+    frames: np.ndarray = field(default_factory=lambda: np.zeros(3, int))
+
+    def add(self, flags: np.ndarray, truth: np.ndarray) -> None:
+        for counts, f, t in ((self.samples, flags, truth), (self.frames, flags.any(1), truth.any(1))):
+            counts += [(f & t).sum(), (f & ~t).sum(), (~f & t).sum()]
+
+    @staticmethod
+    def recall_precision(counts: np.ndarray) -> tuple[float, float]:
+        tp, fp, fn = (int(c) for c in counts)
+        return (tp / (tp + fn) if tp + fn else math.nan), (tp / (tp + fp) if tp + fp else math.nan)
+
+
+def _rotation_moved_deg(a: Motion, b: Motion) -> np.ndarray:
+    """(F, J) degrees between each joint's local rotations in ``a`` and ``b``."""
+    from .core.kinematics import local_rotations
+    from .core.rotations import rotation_angle_deg
+
+    joints = np.arange(a.skeleton.n_joints)
+    return rotation_angle_deg(
+        local_rotations(a.skeleton, a.angles_deg, joints), local_rotations(b.skeleton, b.angles_deg, joints)
+    )
+
+
+def _printed(motion: Motion, digits: int) -> Motion:
+    """``motion`` written as BVH with ``digits`` significant digits and read back."""
+    import tempfile
+    from pathlib import Path
+
+    from .io import read_bvh, write_bvh
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "take.bvh"
+        write_bvh(path, motion, digits=digits)
+        return read_bvh(path, unit_cm=motion.skeleton.unit_cm).replace(name=motion.name)
+
+
+def measure_inspection(
+    clips: Sequence[tuple[str, Motion]],
+    seeds: Sequence[int] = (0,),
+    engine_specs: Sequence[str] = (),
+    progress: Callable[[str], None] | None = None,
+) -> dict[tuple[str, str], FlagCounts]:
+    """How well :func:`workbench.data.inspection.inspect_motion` finds what is known to be
+    broken: for each case of :data:`INSPECTION_CASES`, clip and seed, the counts of each
+    reason's flags (and of all of them, reason ``any``) against the case's truth, keyed by
+    (case, reason). The engines (``rejected`` from those reporting ``robust_weight``,
+    ``disagree`` from two or more) clean the spikes case; an engine that refuses a clip
+    is left out on it."""
+    from .data.inspection import inspect_motion
+
+    engines = {spec: registry.create(spec) for spec in engine_specs}
+    counts: dict[tuple[str, str], FlagCounts] = {}
+    for clip_id, motion in clips:
+        for case, corruption, reasons in INSPECTION_CASES:
+            for seed in seeds if corruption != "none" else seeds[:1]:
+                if progress:
+                    progress(f"{case} on {clip_id} seed {seed}")
+                weights, points = [], []
+                if case == "spikes":
+                    observation = parse_corruption(corruption).apply(motion, seed=seed)
+                    taken, truth = observation.motion, _rotation_moved_deg(motion, observation.motion) > SPIKE_TRUTH_DEG
+                    for engine in engines.values():
+                        try:
+                            result = engine.clean(observation)
+                        except EngineError:
+                            continue
+                        points.append(result.motion.positions * motion.skeleton.unit_cm)
+                        if "robust_weight" in result.diagnostics:
+                            weights.append(result.diagnostics["robust_weight"])
+                elif case == "linear fills":
+                    observation = parse_corruption(corruption).apply(motion, seed=seed)
+                    taken = _printed(registry.create("lerp").clean(observation).motion, FILL_DIGITS)
+                    truth = ~observation.observed
+                else:
+                    taken, truth = motion, np.zeros((motion.n_frames, motion.skeleton.n_joints), bool)
+                    for g in reference_glitches(motion):
+                        truth[g.first : g.last + 1, motion.skeleton.index(g.joint)] = True
+                found = inspect_motion(taken, robust_weights=weights, cleaned_points_cm=points)
+                scored = [r for r in reasons if r in found.flags]
+                for reason in scored:
+                    counts.setdefault((case, reason), FlagCounts()).add(found.flags[reason], truth)
+                every = np.logical_or.reduce([found.flags[r] for r in scored])
+                counts.setdefault((case, "any"), FlagCounts()).add(every, truth)
+    return counts
+
+
+def inspection_markdown(counts: Mapping[tuple[str, str], FlagCounts]) -> str:
+    """The counts of :func:`measure_inspection` as a table of recall and precision."""
+    lines = [
+        "| case | reason | recall (samples) | precision (samples) | recall (frames) | precision (frames) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for (case, reason), c in counts.items():
+        cells = [*FlagCounts.recall_precision(c.samples), *FlagCounts.recall_precision(c.frames)]
+        lines.append(f"| {case} | {reason} | " + " | ".join("–" if math.isnan(v) else f"{v:.3f}" for v in cells) + " |")
+    return "\n".join(lines)

@@ -16,13 +16,13 @@ from workbench.app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
-def test_no_arguments_opens_the_gui_on_the_default_take(monkeypatch):
+def test_no_arguments_opens_the_gui_on_the_last_or_the_default_take(monkeypatch):
     import workbench.app.main
 
     calls = []
     monkeypatch.setattr(workbench.app.main, "run_gui", lambda *args: calls.append(args) or 0)
     assert cli.main([]) == 0
-    assert calls == [(DEFAULT_CLIP, DEFAULT_CORRUPTION, 0, None)]
+    assert calls == [(None, None, None, None)]  # run_gui: the last session's take, else the defaults
 
 
 def test_gui_takes_a_clip_corruption_seed_and_engines(monkeypatch):

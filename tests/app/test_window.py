@@ -301,8 +301,9 @@ def test_the_parameter_panel_keeps_a_trained_engines_weights_folder(window, qtbo
     s.set_specs(["identity", spec], spec)
     settle(qtbot, window)
     assert isinstance(s.runs[spec], EngineRun)
-    ((name, fields),) = panel.edits
+    ((name, fields, kept),) = panel.edits
     assert name == "mssa" and fields["weights"].text() == str(folder)
+    assert "prior_weight" in fields and "energy_kept" in kept  # energy_kept: fixed by the weights
     fields["prior_weight"].setText("2")
     panel._apply_params()
     assert s.current == f"mssa:prior_weight=2.0,weights={folder}" and s.current in s.specs
@@ -311,3 +312,88 @@ def test_the_parameter_panel_keeps_a_trained_engines_weights_folder(window, qtbo
     panel.edits[0][1]["weights"].setText("")  # empty: back to the committed weights
     panel._apply_params()
     assert s.current == "mssa:prior_weight=2.0"
+
+
+def test_the_suspicious_track_marks_intervals_and_n_jumps_to_them(window, qtbot, tiny_walk):
+    from workbench.app.take import make_take
+
+    s, track = window.session, window.transport.suspects
+    s.set_specs(["identity", "test-weights"], "identity")
+    s.set_take(make_take(tiny_walk, "outliers:0.02+gaps:0.01", seed=3, source="spiky walk"))
+    settle(qtbot, window)
+    reasons = {i.reason for i in track.intervals}
+    # the rules' spikes, the mask's gaps, the test engine's "outliers" and the two engines' spread
+    assert {"spike", "missing", "rejected"} <= reasons and track.reasons == [r for r in track.reasons]
+    assert track.height() == len(track.reasons) * track.ROW_PX + 4
+    s.set_frame(0)
+    starts = sorted({i.first for i in track.intervals if i.first > 0})
+    qtbot.keyClick(window.focusWidget(), Qt.Key_N)
+    assert s.frame == starts[0] and not s.playing and str(starts[0]) in window.controls.log.item(0).text()
+    qtbot.keyClick(window.focusWidget(), Qt.Key_N)
+    assert s.frame == starts[1]
+    qtbot.keyClick(window.focusWidget(), Qt.Key_N, Qt.ShiftModifier)
+    assert s.frame == starts[0]
+    # a click on an interval shows its first frame
+    spike = next(i for i in track.intervals if i.reason == "spike")
+    row = track.reasons.index("spike")
+    x = (track._x(spike.first) + track._x(spike.last)) / 2
+    qtbot.mouseClick(track, Qt.LeftButton, pos=QPoint(round(x), 2 + row * track.ROW_PX + 3))
+    assert s.frame == spike.first
+
+
+def test_a_take_without_suspects_says_so(window, qtbot, tiny_walk):
+    from workbench.app.take import make_take
+
+    s = window.session
+    s.set_specs([])
+    still = tiny_walk.replace(angles_deg=np.zeros_like(tiny_walk.angles_deg))  # a pose held: nothing to flag
+    s.set_take(make_take(still, "none", source="still"))
+    settle(qtbot, window)
+    assert window.transport.suspects.intervals == [] and s.jump_to_suspect(1) is None
+    assert window.controls.log.item(0).text() == "no suspicious frames in this take"
+
+
+def test_the_window_fits_a_laptop_screen_and_the_panel_collapses(window, qtbot):
+    from workbench.app.main import fit_to_screen
+
+    hint = window.minimumSizeHint()
+    assert hint.width() <= 1366 and hint.height() <= 700  # 768 less a title bar and a task bar
+    fit_to_screen(window, (10000, 10000))
+    area = window.screen().availableGeometry()
+    assert window.frameGeometry().width() <= area.width() and window.frameGeometry().height() <= area.height()
+    qtbot.keyClick(window.focusWidget(), Qt.Key_B, Qt.ControlModifier)
+    assert window.split.sizes()[0] == 0
+    qtbot.keyClick(window.focusWidget(), Qt.Key_B, Qt.ControlModifier)
+    assert window.split.sizes()[0] > 0
+    window.resize(1200, 800)
+
+
+def test_the_parameters_are_the_inference_ones_collapsed_per_stage(window, qtbot):
+    from workbench.app.controls import Collapsible
+
+    s, panel = window.session, window.controls.engines
+    s.set_specs(["identity", "lerp>gaussian", "ebf"], "ebf")
+    ((name, fields, kept),) = panel.edits
+    assert name == "ebf" and "weights" in fields
+    assert not {"epochs", "learning_rate", "batch_windows", "dropout"} & set(fields) and "epochs" in kept
+    groups = panel.params_box.findChildren(Collapsible)
+    assert len(groups) == 1 and groups[0].body.isHidden()
+    groups[0].button.click()
+    assert not groups[0].body.isHidden()
+    s.set_current("lerp>gaussian")
+    panel.refresh()
+    assert [name for name, _, _ in panel.edits] == ["lerp", "gaussian"]
+
+
+def test_the_window_keeps_its_state_between_runs(window, tmp_path):
+    from PySide6.QtCore import QSettings
+
+    from workbench.app.main import GEOMETRY_KEY, save_state, saved_take
+
+    settings = QSettings(str(tmp_path / "workbench.ini"), QSettings.IniFormat)
+    assert saved_take(settings) is None
+    s = window.session
+    save_state(window, settings)
+    again = QSettings(str(tmp_path / "workbench.ini"), QSettings.IniFormat)
+    assert saved_take(again) == (s.take.source, s.take.corruption, s.take.seed, s.specs)
+    assert again.value(GEOMETRY_KEY) is not None

@@ -1,6 +1,8 @@
 """The control panel: the take (catalogue clip or file, corruption spec, seed), the
-engines (every registered one, checkable, with its parameters; any spec can be added),
-compare mode and follow-root, and the message log. Every control calls a Session setter.
+engines (every registered one, checkable, with the inference parameters of the
+highlighted one, a collapsed group per stage; any spec can be added), compare mode and
+follow-root, and the message log. Every control calls a Session setter. The panel
+scrolls when the window is too short for it.
 """
 
 from __future__ import annotations
@@ -22,13 +24,15 @@ from PySide6.QtWidgets import (
     QListWidget,
     QListWidgetItem,
     QPushButton,
+    QScrollArea,
     QSpinBox,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
 
 from .. import registry
-from ..engine import WEIGHTS_OPTION
+from ..engine import INFERENCE, WEIGHTS_OPTION, param_roles
 from .take import DEFAULT_CORRUPTION, EngineRun
 
 SPEC_ROLE = Qt.UserRole
@@ -110,6 +114,33 @@ class TakePanel(QGroupBox):
             self.session.open(source, corruption, seed)
 
 
+class Collapsible(QWidget):
+    """A titled section whose body shows when its arrow button is pressed (collapsed
+    when made)."""
+
+    def __init__(self, title: str, parent=None) -> None:
+        super().__init__(parent)
+        self.button = QToolButton(text=title, checkable=True, checked=False)
+        self.button.setToolButtonStyle(Qt.ToolButtonTextBesideIcon)
+        self.button.setArrowType(Qt.RightArrow)
+        self.button.setAutoRaise(True)
+        self.button.toggled.connect(self.expand)
+        self.body = QWidget()
+        self.form = QFormLayout(self.body)
+        self.form.setContentsMargins(12, 0, 0, 0)
+        self.body.setVisible(False)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(0)
+        layout.addWidget(self.button)
+        layout.addWidget(self.body)
+
+    def expand(self, on: bool) -> None:
+        self.button.setChecked(on)
+        self.button.setArrowType(Qt.DownArrow if on else Qt.RightArrow)
+        self.body.setVisible(on)
+
+
 class EnginePanel(QGroupBox):
     """Every registered engine and every spec in use, checkable; the highlighted one is
     shown as "cleaned" and its parameters can be edited. Engines are imported only when
@@ -127,7 +158,8 @@ class EnginePanel(QGroupBox):
         self.add = QLineEdit()
         self.add.setPlaceholderText("add a spec, e.g. lerp>gaussian:sigma_ms=80")
         self.add.returnPressed.connect(self._add)
-        self.params = QFormLayout()
+        self.params = QVBoxLayout()
+        self.params.setContentsMargins(4, 2, 4, 2)
         self.params_box = QGroupBox("Parameters")
         self.params_box.setLayout(self.params)
         self.save = QPushButton("Save cleaned BVH…")
@@ -141,7 +173,9 @@ class EnginePanel(QGroupBox):
         layout = QVBoxLayout(self)
         for w in (self.list, self.add, self.params_box, self.save, self.compare, self.follow):
             layout.addWidget(w)
-        self.edits: list[tuple[str, dict[str, QLineEdit]]] = []
+        # per stage of the shown spec: its name, an edit per inference parameter, the
+        # values of the others (kept as the spec has them)
+        self.edits: list[tuple[str, dict[str, QLineEdit], dict[str, str]]] = []
         self._params_for: str | None = None
         for signal in (session.takeChanged, session.runsChanged, session.viewChanged):
             signal.connect(self.refresh)
@@ -210,39 +244,48 @@ class EnginePanel(QGroupBox):
 
     # -- parameters -----------------------------------------------------------------
     def _show_params(self, spec: str) -> None:
-        """A field per parameter of each stage of ``spec``, then an Apply button (kept
-        as typed while ``spec`` stays the one shown)."""
+        """A collapsed group per stage of ``spec`` with a field per inference parameter
+        (training and trained ones are ``workbench train``'s) and a trainable stage's
+        weights folder, then an Apply button; kept as typed while ``spec`` stays the one
+        shown."""
         if spec == self._params_for:
             return
         self._params_for = spec
-        while self.params.rowCount():
-            self.params.removeRow(0)
+        while self.params.count():
+            old = self.params.takeAt(0).widget()
+            old.setParent(None)  # gone from the panel now, deleted when Qt next can
+            old.deleteLater()
         self.edits = []
         try:
             engine = registry.create(spec, pretrained=False) if spec else None
         except Exception as err:  # a bad spec: say so where its parameters would be
-            self.params.addRow(QLabel(f"cannot build {spec}: {err}", wordWrap=True))
+            self.params.addWidget(QLabel(f"cannot build {spec}: {err}", wordWrap=True))
             return
         if engine is None:
             return
         for stage in getattr(engine, "stages", [engine]):
-            fields = {f.name: QLineEdit(str(getattr(stage.params, f.name))) for f in dataclasses.fields(stage.params)}
+            roles = param_roles(stage.params)
+            values = {name: str(getattr(stage.params, name)) for name in roles}
+            fields = {name: QLineEdit(values[name]) for name, role in roles.items() if role == INFERENCE}
             if stage.info.trainable:
                 fields[WEIGHTS_OPTION] = QLineEdit(
                     str(stage.weights_folder or ""),
                     placeholderText="default",
                     toolTip="a folder that `workbench train --out` wrote; empty: the committed weights",
                 )
-            self.edits.append((stage.info.name, fields))
+            kept = {name: value for name, value in values.items() if name not in fields}
+            self.edits.append((stage.info.name, fields, kept))
+            group = Collapsible(f"{stage.info.name} ({len(fields)} parameters)" if fields else stage.info.name)
             if not fields:
-                self.params.addRow(stage.info.name, QLabel("no parameters"))
+                group.form.addRow(QLabel("no inference parameters"))
             for name, edit in fields.items():
                 edit.returnPressed.connect(self._apply_params)
-                self.params.addRow(f"{stage.info.name}: {name}", edit)
-        if any(fields for _, fields in self.edits):
+                group.form.addRow(name, edit)
+            self.params.addWidget(group)
+        if any(fields for _, fields, _ in self.edits):
             button = QPushButton("Apply parameters")
             button.clicked.connect(self._apply_params)
-            self.params.addRow(button)
+            self.params.addWidget(button)
 
     def _apply_params(self) -> None:
         """Replace the current spec by one with the edited parameters and run it."""
@@ -250,9 +293,14 @@ class EnginePanel(QGroupBox):
         try:
             spec = ">".join(
                 registry.create(
-                    name + ":" + ",".join(f"{k}={e.text().strip()}" for k, e in fields.items()), pretrained=False
+                    name
+                    + ":"
+                    + ",".join(
+                        f"{k}={v}" for k, v in (kept | {k: e.text().strip() for k, e in fields.items()}).items()
+                    ),
+                    pretrained=False,
                 ).spec
-                for name, fields in self.edits
+                for name, fields, kept in self.edits
             )
         except Exception as err:  # a bad value: tell the user, keep the old spec
             s.message.emit(f"bad parameters: {err}")
@@ -273,7 +321,10 @@ class MessageLog(QListWidget):
             self.takeItem(self.count() - 1)
 
 
-class ControlPanel(QWidget):
+class ControlPanel(QScrollArea):
+    """The take, the engines and the messages in a column that scrolls vertically when
+    the window is shorter than it."""
+
     def __init__(self, session, parent=None) -> None:
         super().__init__(parent)
         self.take = TakePanel(session)
@@ -281,10 +332,16 @@ class ControlPanel(QWidget):
         self.log = MessageLog()
         self.log.setWordWrap(True)
         session.message.connect(self.log.add)
-        layout = QVBoxLayout(self)
+        column = QWidget()
+        layout = QVBoxLayout(column)
         layout.setContentsMargins(6, 6, 6, 6)
         layout.addWidget(self.take)
         layout.addWidget(self.engines, 1)
         layout.addWidget(QLabel("Messages"))
         layout.addWidget(self.log)
         self.log.setMaximumHeight(110)
+        self.setWidget(column)
+        self.setWidgetResizable(True)
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)
+        self.setFrameShape(QScrollArea.NoFrame)
+        self.setMinimumWidth(column.minimumSizeHint().width() + self.verticalScrollBar().sizeHint().width())

@@ -12,7 +12,7 @@ import numpy as np
 from ..core.motion import channel_count, channel_mask, position_unknown
 from ..metrics import body_joints
 from ..plots import plot_bone_lengths, plot_data_weights, plot_errors, plot_filter_widths, plot_note
-from ..plots.style import ENGINE_STYLES, JOINTS, NOISY, TEXT, engine_colour
+from ..plots.style import ENGINE_STYLES, JOINTS, MOVED_AXIS_LABEL, NOISY, TEXT, engine_colour
 from ..plots.timeline import Series
 from .take import EngineRun, Take, bone_choice
 
@@ -66,7 +66,7 @@ def draw_errors(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...
         labels = (
             ()
             if take.truth is not None
-            else ("no ground truth: how far each engine moved the recording", take.error_label)
+            else ("no ground truth: how far each engine moved the recording", MOVED_AXIS_LABEL)
         )
         plot_errors(ax, error_series(take, runs, selected), take.fps, gaps, *labels)
         ax.set_xlabel("")

@@ -60,9 +60,12 @@ def open_window(
     seed: int = 0,
     specs: list[str] | None = None,
     size: tuple[int, int] = WINDOW_SIZE,
+    settings=None,
 ):
-    """A shown main window loading ``source``, its engines queued to run. The take
-    loads on the worker while the window is being built."""
+    """A shown main window loading ``source``, its engines queued to run, ``size`` pixels
+    or the screen's available area where that is smaller. The take loads on the worker
+    while the window is being built. With ``settings`` (a QSettings) the window takes
+    the geometry saved there and saves its state there when it closes."""
     application()
     from .session import Session
     from .window import MainWindow
@@ -70,19 +73,74 @@ def open_window(
     session = Session()
     session.set_specs(default_engines() if specs is None else specs)
     session.open(source, corruption, seed)
-    window = MainWindow(session)
+    window = MainWindow(session, settings)
     session.setParent(window)
-    window.resize(*size)
+    fit_to_screen(window, size)
+    if settings is not None and settings.value(GEOMETRY_KEY) is not None:
+        window.restoreGeometry(settings.value(GEOMETRY_KEY))
     window.show()
     return window
 
 
+def fit_to_screen(window, size: tuple[int, int]) -> None:
+    """Resize ``window`` to ``size`` (pixels, frame included) within its screen's
+    available area, and place it inside that area."""
+    area = window.screen().availableGeometry()
+    frame = window.frameGeometry().size() - window.geometry().size()  # the title bar and borders
+    width = min(size[0], area.width() - frame.width())
+    height = min(size[1], area.height() - frame.height())
+    window.resize(width, height)
+    window.move(area.left() + (area.width() - width - frame.width()) // 2, area.top())
+
+
+#: where the app keeps its state between runs (QSettings: organisation, application)
+SETTINGS_NAME = ("mocap-workbench", "workbench")
+GEOMETRY_KEY = "window/geometry"
+TAKE_KEYS = ("take/source", "take/corruption", "take/seed", "engines/specs")
+
+
+def save_state(window, settings) -> None:
+    """Keep the window's geometry, its take (source, corruption, seed) and its engines."""
+    s = window.session
+    settings.setValue(GEOMETRY_KEY, window.saveGeometry())
+    if s.take is not None:
+        for key, value in zip(TAKE_KEYS, (s.take.source, s.take.corruption, s.take.seed, s.specs)):
+            settings.setValue(key, value)
+    settings.sync()
+
+
+def saved_take(settings) -> tuple[str, str, int, list[str]] | None:
+    """The take and engines :func:`save_state` kept, None when there are none (or they
+    cannot be read back)."""
+    source, corruption, seed, specs = (settings.value(key) for key in TAKE_KEYS)
+    if not source or corruption is None:
+        return None
+    try:
+        return str(source), str(corruption), int(seed), [str(x) for x in (specs or [])]
+    except (TypeError, ValueError):
+        return None
+
+
 def run_gui(
-    source: str = DEFAULT_CLIP, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, specs: list[str] | None = None
+    source: str | None = None, corruption: str | None = None, seed: int | None = None, specs: list[str] | None = None
 ) -> int:
-    """Open the window and run the event loop until it closes."""
+    """Open the window and run the event loop until it closes. What is not given is taken
+    from the last session (:func:`saved_take`) when nothing is given, else the defaults
+    (:data:`DEFAULT_CLIP`, :data:`DEFAULT_CORRUPTION`, seed 0, :func:`default_engines`)."""
     app = application()
-    window = open_window(source, corruption, seed, specs)  # noqa: F841 (kept alive while the loop runs)
+    from PySide6.QtCore import QSettings
+
+    settings = QSettings(*SETTINGS_NAME)
+    last = saved_take(settings) if (source, corruption, seed, specs) == (None,) * 4 else None
+    if last is not None:
+        source, corruption, seed, specs = last
+    window = open_window(  # noqa: F841 (kept alive while the loop runs)
+        source or DEFAULT_CLIP,
+        DEFAULT_CORRUPTION if corruption is None else corruption,
+        seed or 0,
+        specs,
+        settings=settings,
+    )
     return app.exec()
 
 

@@ -18,7 +18,8 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
-from .take import DEFAULT_CORRUPTION, EngineRun, Take, describe, open_take, run_engine
+from ..data.inspection import Inspection, Interval
+from .take import DEFAULT_CORRUPTION, EngineRun, Take, describe, inspect_runs, open_take, run_engine
 
 TICK_MS = 15
 
@@ -79,6 +80,7 @@ class Session(QObject):
         self._timer.setInterval(TICK_MS)
         self._timer.timeout.connect(self._tick)
         self._clock = (0.0, 0)  # (time, frame) playback started from
+        self._inspection: tuple[tuple, Inspection] | None = None  # (what it was made of, it)
 
     # -- the worker -----------------------------------------------------------------
     def _submit(
@@ -232,6 +234,39 @@ class Session(QObject):
         if bool(on) != self.follow:
             self.follow = bool(on)
             self.viewChanged.emit()
+
+    # -- suspicious frames ------------------------------------------------------------
+    def inspection(self) -> Inspection | None:
+        """The take's suspicious samples: the rules' (made with the take) and the evidence
+        of every checked engine's finished run (rejected samples, disagreement)."""
+        if self.take is None:
+            return None
+        runs = [r for s in self.specs if isinstance(r := self.runs.get(s), EngineRun)]
+        key = (self.take, tuple(map(id, runs)))
+        if self._inspection is None or self._inspection[0] != key:
+            self._inspection = key, inspect_runs(self.take, runs)
+        return self._inspection[1]
+
+    def suspects(self) -> list[Interval]:
+        """The suspicious intervals, by first frame."""
+        found = self.inspection()
+        return found.intervals() if found is not None else []
+
+    def jump_to_suspect(self, direction: int = 1) -> Interval | None:
+        """Pause and show the first frame of the next suspicious interval after the
+        current frame (``direction`` -1: the one before), wrapping round; says which in a
+        ``message``. Returns it (None when there is none)."""
+        intervals = self.suspects()
+        if not intervals:
+            self.message.emit("no suspicious frames in this take")
+            return None
+        starts = sorted({i.first for i in intervals})
+        later = [f for f in starts if (f - self.frame) * direction > 0]
+        frame = (min(later) if direction > 0 else max(later)) if later else starts[0 if direction > 0 else -1]
+        self.step(frame - self.frame)
+        here = [i for i in intervals if i.first == frame]
+        self.message.emit(" · ".join(str(i) for i in here))
+        return here[0]
 
     # -- time -----------------------------------------------------------------------
     @property

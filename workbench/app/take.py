@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.motion import Motion, Observation
+from ..data.inspection import Inspection, inspect_motion
 from ..io import MOTION_SUFFIXES, read_motion
 from ..metrics import body_joints, joint_position_error_cm
 from ..render.scene import skeleton_points
@@ -108,6 +109,7 @@ class Take:
     truth: Motion | None
     noisy: Track
     truth_track: Track | None
+    inspection: Inspection  # the rules' suspicious samples of the noisy take, its gaps as "missing"
 
     @property
     def motion(self) -> Motion:
@@ -167,14 +169,16 @@ def make_take(
     else:
         truth, observation = None, Observation(motion, observed)
     truth_track = None if truth is None else Track.of(truth, None)
+    noisy = Track.of(observation.bridged(), truth)
     return Take(
         source or motion.name,
         str(spec),
         int(seed),
         observation,
         truth,
-        Track.of(observation.bridged(), truth),
+        noisy,
         truth_track,
+        inspect_motion(noisy.motion, observation.observed),
     )
 
 
@@ -220,6 +224,17 @@ class EngineRun:
         """(F, C) the data weight a robust estimator gave every sample (near 0: treated as
         an outlier, 0 where missing), if the engine reports them."""
         return self.diagnostics.get("robust_weight")
+
+
+def inspect_runs(take: Take, runs: list[EngineRun]) -> Inspection:
+    """The take's inspection with the engines' evidence: the samples the robust ones among
+    ``runs`` rejected, and where two or more of them disagree."""
+    J, unit = take.motion.skeleton.n_joints, take.motion.skeleton.unit_cm
+    return take.inspection.with_evidence(
+        take.observation.observed,
+        [r.robust_weight for r in runs if r.robust_weight is not None],
+        [r.track.points[:, :J] * unit for r in runs],
+    )
 
 
 def run_engine(spec: str, take: Take) -> EngineRun:

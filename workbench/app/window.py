@@ -1,17 +1,19 @@
 """The main window: controls on the left; the 3D panes, the transport bar (with the
-joint-error colour scale) and the plot tabs on the right; messages and worker progress
-in the status bar. Keys: left/right step a frame, space plays or pauses, Ctrl+S saves
-the cleaned take.
+joint-error colour scale and the suspicious-frames track) and the plot tabs on the right;
+messages and worker progress in the status bar. Keys: left/right step a frame, space
+plays or pauses, N and Shift+N jump to the next and previous suspicious interval, Ctrl+S
+saves the cleaned take.
 """
 
 from __future__ import annotations
 
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QKeySequence, QShortcut
+from PySide6.QtCore import QRectF, Qt
+from PySide6.QtGui import QColor, QFont, QKeySequence, QPainter, QShortcut
 from PySide6.QtWidgets import (
     QComboBox,
+    QGridLayout,
     QHBoxLayout,
     QLabel,
     QMainWindow,
@@ -19,11 +21,15 @@ from PySide6.QtWidgets import (
     QPushButton,
     QSlider,
     QSplitter,
+    QStyle,
+    QStyleOptionSlider,
+    QToolTip,
     QVBoxLayout,
     QWidget,
 )
 
-from ..plots.style import error_mappable
+from ..data.inspection import REASONS
+from ..plots.style import CURSOR, REASON_COLOURS, TEXT, error_mappable
 from .controls import ControlPanel
 from .plot_view import PlotTabs
 from .scene_view import SceneView
@@ -53,9 +59,94 @@ class ErrorScale(FigureCanvasQTAgg):
         self.draw_idle()
 
 
+class SuspectTrack(QWidget):
+    """The suspicious intervals of the take (:meth:`Session.suspects`) under the timeline
+    slider, a row per reason found, in the reason's colour, with the current frame
+    marked; hovering names the intervals under the mouse, a click shows the first frame
+    of one."""
+
+    ROW_PX = 9
+
+    def __init__(self, session: Session, slider: QSlider, parent=None) -> None:
+        super().__init__(parent)
+        self.session, self.slider = session, slider
+        self.setMouseTracking(True)
+        self.setToolTip("suspicious frames: N jumps to the next interval, Shift+N to the one before")
+        for signal in (session.takeChanged, session.runsChanged):
+            signal.connect(self.refresh)
+        session.frameChanged.connect(lambda _: self.update())
+        self.refresh()
+
+    def refresh(self) -> None:
+        self.intervals = self.session.suspects()
+        self.reasons = [r for r in REASONS if any(i.reason == r for i in self.intervals)]
+        self.setFixedHeight(max(1, len(self.reasons)) * self.ROW_PX + 4)
+        self.update()
+
+    def _span(self) -> tuple[float, float]:
+        """The x range (pixels, this widget's) of the slider's frames, from its handle's
+        centre at frame 0 to its centre at the last frame."""
+        option = QStyleOptionSlider()
+        self.slider.initStyleOption(option)
+        handle = self.slider.style().pixelMetric(QStyle.PM_SliderLength, option, self.slider)
+        left = self.slider.x() - self.x() + handle / 2  # the slider is a sibling
+        return left, left + self.slider.width() - handle
+
+    def _x(self, frame: float) -> float:
+        left, right = self._span()
+        return left + (right - left) * frame / max(self.session.n_frames - 1, 1)
+
+    def paintEvent(self, _event) -> None:
+        if self.session.take is None:
+            return
+        painter = QPainter(self)
+        font = QFont(self.font())
+        font.setPointSizeF(7.0)
+        painter.setFont(font)
+        left, _ = self._span()
+        if not self.reasons:
+            painter.setPen(QColor(TEXT))
+            painter.drawText(QRectF(0, 0, left - 6, self.height()), Qt.AlignRight | Qt.AlignVCenter, "no suspects")
+        for row, reason in enumerate(self.reasons):
+            y = 2 + row * self.ROW_PX
+            painter.setPen(QColor(TEXT))
+            painter.drawText(QRectF(0, y - 1, left - 6, self.ROW_PX + 2), Qt.AlignRight | Qt.AlignVCenter, reason)
+            colour = QColor(REASON_COLOURS[reason])
+            for i in self.intervals:
+                if i.reason == reason:
+                    x0, x1 = self._x(i.first - 0.5), self._x(i.last + 0.5)
+                    painter.fillRect(QRectF(x0, y, max(x1 - x0, 2.0), self.ROW_PX - 2), colour)
+        x = self._x(self.session.frame)
+        painter.setPen(QColor(CURSOR))
+        painter.drawLine(round(x), 0, round(x), self.height())
+        painter.end()
+
+    def _under(self, x: float, y: float) -> list:
+        row = int((y - 2) // self.ROW_PX)
+        if not 0 <= row < len(self.reasons):
+            return []
+        slack = 3.0  # pixels: a one-frame interval stays easy to hit
+        return [
+            i
+            for i in self.intervals
+            if i.reason == self.reasons[row] and self._x(i.first - 0.5) - slack <= x <= self._x(i.last + 0.5) + slack
+        ]
+
+    def mouseMoveEvent(self, event) -> None:
+        under = self._under(event.position().x(), event.position().y())
+        text = "\n".join(str(i) for i in under[:6]) if under else self.toolTip()
+        QToolTip.showText(event.globalPosition().toPoint(), text, self)
+
+    def mousePressEvent(self, event) -> None:
+        under = self._under(event.position().x(), event.position().y())
+        if under:
+            self.session.step(under[0].first - self.session.frame)
+            self.session.message.emit(str(under[0]))
+
+
 class Transport(QWidget):
-    """Play/pause, the timeline slider, the frame and time, the playback speed, the
-    joint-error colour scale."""
+    """Play/pause, the timeline slider and the suspicious-frames track under it, the
+    frame and time, the playback speed, the joint-error colour scale."""
 
     def __init__(self, session: Session, parent=None) -> None:
         super().__init__(parent)
@@ -72,10 +163,14 @@ class Transport(QWidget):
         self.speed.setCurrentIndex(SPEEDS.index(1.0))
         self.speed.currentIndexChanged.connect(lambda i: session.set_speed(SPEEDS[i]))
         self.speed.setToolTip("playback speed")
-        layout = QHBoxLayout(self)
+        self.suspects = SuspectTrack(session, self.slider)
+        layout = QGridLayout(self)
         layout.setContentsMargins(6, 2, 6, 2)
-        for w in (self.play, self.slider, self.label, self.speed, ErrorScale(session)):
-            layout.addWidget(w, 1 if w is self.slider else 0)
+        layout.setVerticalSpacing(0)
+        for column, w in enumerate((self.play, self.slider, self.label, self.speed, ErrorScale(session))):
+            layout.addWidget(w, 0, column)
+        layout.setColumnStretch(1, 1)
+        layout.addWidget(self.suspects, 1, 0, 1, 3)  # under the play button (its labels) and the slider
         session.takeChanged.connect(self.show_take)
         session.frameChanged.connect(self.show_frame)
         session.playingChanged.connect(lambda on: self.play.setText("Pause" if on else "Play"))
@@ -95,9 +190,13 @@ class Transport(QWidget):
 
 
 class MainWindow(QMainWindow):
-    def __init__(self, session: Session | None = None) -> None:
+    """The window; with ``settings`` (a QSettings) it saves its state there on closing
+    (:func:`workbench.app.main.save_state`)."""
+
+    def __init__(self, session: Session | None = None, settings=None) -> None:
         super().__init__()
         self.session = session or Session(self)
+        self.settings = settings
         s = self.session
         self.scene = SceneView(s)
         self.transport = Transport(s)
@@ -117,6 +216,8 @@ class MainWindow(QMainWindow):
         split.addWidget(right)
         split.setStretchFactor(1, 1)
         split.setSizes([290, 910])
+        split.setCollapsible(1, False)
+        self.split = split
         self.setCentralWidget(split)
         self.progress = QProgressBar()
         self.progress.setRange(0, 0)
@@ -133,13 +234,27 @@ class MainWindow(QMainWindow):
             (Qt.Key_Left, lambda: s.step(-1)),
             (Qt.Key_Right, lambda: s.step(1)),
             (Qt.Key_Space, s.toggle_playing),
+            (Qt.Key_N, lambda: s.jump_to_suspect(1)),
+            (Qt.SHIFT | Qt.Key_N, lambda: s.jump_to_suspect(-1)),
         ):
             QShortcut(QKeySequence(key), self, action)
         QShortcut(QKeySequence.Save, self, self.controls.engines.save.click)  # Ctrl+S
+        QShortcut(QKeySequence("Ctrl+B"), self, self.toggle_panel)
         self.scene.setFocus()  # not a text field, which would take the keys for itself
+
+    def toggle_panel(self) -> None:
+        """Collapse the control panel (Ctrl+B, or drag the splitter to the left), or
+        bring it back."""
+        left, right = self.split.sizes()
+        hint = self.controls.minimumWidth()
+        self.split.setSizes([0, left + right] if left else [hint, max(left + right - hint, 1)])
 
     def closeEvent(self, event) -> None:
         self.session.shutdown()
+        if self.settings is not None:
+            from .main import save_state
+
+            save_state(self, self.settings)
         super().closeEvent(event)
 
     def show_busy(self, text: str) -> None:

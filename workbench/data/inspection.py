@@ -19,17 +19,24 @@ Four rules that need no ground truth and no engine, each flagging samples (frame
 
 Each rule is a function ``motion -> (flags (F, J) bool, scores (F, J) float)``.
 
+Three more reasons need more than the motion: ``missing``, the samples an observed mask
+(a ``workbench corrupt`` sidecar) lists as missing; ``rejected``, the samples a robust
+engine's estimator treated as outliers (its ``robust_weight`` diagnostic below
+:data:`REJECT_WEIGHT`); and ``disagree``, the joints where engines' cleaned poses spread
+apart (:func:`disagreement_flags`). :func:`inspect_motion` adds each when given what it needs.
+
 Frames are 0-based frames of the motion; an interval is ``first`` to ``last`` inclusive.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.kinematics import local_rotations
-from ..core.motion import Motion, channel_joints
+from ..core.motion import Motion, Skeleton, channel_count, channel_joints, channel_mask, position_unknown
 from ..core.rotations import matrix_to_quaternion
 from .quality import reference_glitches, runs
 
@@ -43,6 +50,13 @@ LINEAR_MIN_FRAMES = 2
 LINEAR_MIN_STEP = 0.01
 #: relative change of a bone's length that counts as a stretch
 BONE_TOLERANCE = 0.02
+#: a robust engine's data weight below this is a rejected sample (Welsch: exp(-r^2 / p^2) < 0.1
+#: for a residual r over 1.5 times the scale p)
+REJECT_WEIGHT = 0.1
+#: cm a joint's cleaned positions must spread (the farthest engine from their mean) to disagree
+DISAGREE_FLOOR_CM = 2.0
+#: ... and multiples of the joint's median spread over the take
+DISAGREE_SCALE = 4.0
 #: flagged frames of one rule at most this many frames apart are one interval
 MERGE_FRAMES = 3
 
@@ -51,6 +65,9 @@ REASONS = {
     "turn": "turns faster than a body can",
     "linear": "channels on a straight line (a linear fill)",
     "bone": "bone length varies",
+    "missing": "no sample (a gap in the observed mask)",
+    "rejected": "a robust engine treated it as an outlier",
+    "disagree": "the engines' cleaned poses disagree",
 }
 
 
@@ -58,7 +75,8 @@ REASONS = {
 class Interval:
     """Frames ``first`` to ``last`` (inclusive) flagged by rule ``reason`` on ``joints``;
     ``score`` the rule's largest value there (degrees for spike and turn, frames for
-    linear, relative stretch for bone)."""
+    linear, relative stretch for bone, 1 for missing, 1 - weight for rejected, cm for
+    disagree)."""
 
     reason: str
     first: int
@@ -155,6 +173,40 @@ def turn_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return flags, scores
 
 
+def rejected_flags(skeleton: Skeleton, observed: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(flags (F, J) bool, 1 - the joint's smallest weight (F, J)) of the ``rejected``
+    reason: observed samples a robust estimator weighted below :data:`REJECT_WEIGHT`
+    (a column it left at 0 wherever observed, one it did not filter, is left out).
+    ``weight`` is an engine's ``robust_weight``, (F, C) over the channel matrix's columns
+    (joint angles) or (F, 3J) over the joints' root-relative positions; ``observed`` (F, J)."""
+    F, J = observed.shape
+    weight = np.asarray(weight, float)
+    if weight.shape[1] == channel_count(skeleton):
+        known = channel_mask(observed, skeleton)
+        columns = channel_joints(skeleton)
+    elif weight.shape[1] == 3 * J:
+        known = np.repeat(~position_unknown(observed, skeleton.parents, skeleton.translated), 3, axis=1)
+        columns = np.repeat(np.arange(J), 3)
+    else:
+        raise ValueError(f"robust weights of {weight.shape[1]} columns fit neither the channels nor the positions")
+    weighted = (known & (weight > 0)).any(axis=0)  # a column at 0 wherever observed was not filtered
+    lowest = np.ones((F, J))
+    np.minimum.at(lowest, (slice(None), columns[weighted]), np.where(known, weight, 1.0)[:, weighted])
+    return lowest < REJECT_WEIGHT, 1.0 - lowest
+
+
+def disagreement_flags(points_cm: list[np.ndarray], skeleton: Skeleton) -> tuple[np.ndarray, np.ndarray]:
+    """(flags (F, J) bool, spread (F, J) cm) of the ``disagree`` reason from two or more
+    engines' joint positions ``points_cm`` ((F, J, 3) cm each): the spread is the
+    distance of the farthest engine from their mean, root-aligned (the body root's
+    position subtracted, as the scores are), and a joint is flagged where it exceeds
+    :data:`DISAGREE_FLOOR_CM` and :data:`DISAGREE_SCALE` times its median over the take."""
+    root = skeleton.body_root
+    aligned = np.stack([p - p[:, root : root + 1] for p in points_cm])
+    spread = np.linalg.norm(aligned - aligned.mean(0), axis=-1).max(0)
+    return spread > np.maximum(DISAGREE_FLOOR_CM, DISAGREE_SCALE * np.median(spread, axis=0)), spread
+
+
 @dataclass(frozen=True)
 class Inspection:
     """What :func:`inspect_motion` found: per rule, the flagged samples (F, J) and scores."""
@@ -179,6 +231,34 @@ class Inspection:
                 out.append(Interval(reason, int(run[0]), int(run[-1]), joints, score))
         return sorted(out, key=lambda i: (i.first, i.reason))
 
+    def with_evidence(
+        self,
+        observed: np.ndarray | None = None,
+        robust_weights: Sequence[np.ndarray] = (),
+        cleaned_points_cm: Sequence[np.ndarray] = (),
+    ) -> Inspection:
+        """This inspection with the reasons that need more than the motion, in place of
+        any it had: ``missing`` where an ``observed`` mask (F, J) is given (the rules'
+        flags on missing samples, which hold no data, are dropped), ``rejected`` for robust
+        engines' ``robust_weights`` (:func:`rejected_flags`), ``disagree`` for two or more
+        engines' cleaned joint positions (:func:`disagreement_flags`)."""
+        flags = {r: f for r, f in self.flags.items() if r in RULES}
+        scores = {r: s for r, s in self.scores.items() if r in RULES}
+        shape = (self.motion.n_frames, self.motion.skeleton.n_joints)
+        known = np.ones(shape, bool) if observed is None else np.asarray(observed, bool)
+        found = {}
+        if observed is not None:
+            flags = {r: f & known for r, f in flags.items()}
+            found["missing"] = ~known, (~known).astype(float)
+        if len(robust_weights):
+            each = [rejected_flags(self.motion.skeleton, known, w) for w in robust_weights]
+            found["rejected"] = np.logical_or.reduce([f for f, _ in each]), np.maximum.reduce([s for _, s in each])
+        if len(cleaned_points_cm) >= 2:
+            found["disagree"] = disagreement_flags(list(cleaned_points_cm), self.motion.skeleton)
+        return Inspection(
+            self.motion, flags | {r: f for r, (f, _) in found.items()}, scores | {r: s for r, (_, s) in found.items()}
+        )
+
     def to_json(self) -> dict:
         frames = self.flagged_frames()
         return {
@@ -197,7 +277,14 @@ class Inspection:
 RULES = {"spike": spike_flags, "turn": turn_flags, "linear": linear_flags, "bone": bone_flags}
 
 
-def inspect_motion(motion: Motion) -> Inspection:
-    """Run every rule on ``motion`` (a take as recorded: no ground truth needed)."""
+def inspect_motion(
+    motion: Motion,
+    observed: np.ndarray | None = None,
+    robust_weights: Sequence[np.ndarray] = (),
+    cleaned_points_cm: Sequence[np.ndarray] = (),
+) -> Inspection:
+    """Run every rule on ``motion`` (a take as recorded: no ground truth needed), then add
+    the reasons that need a mask or engines' results (:meth:`Inspection.with_evidence`)."""
     found = {reason: rule(motion) for reason, rule in RULES.items()}
-    return Inspection(motion, {r: f for r, (f, _) in found.items()}, {r: s for r, (_, s) in found.items()})
+    inspection = Inspection(motion, {r: f for r, (f, _) in found.items()}, {r: s for r, (_, s) in found.items()})
+    return inspection.with_evidence(observed, robust_weights, cleaned_points_cm)

@@ -14,6 +14,16 @@ TEXT = "#20242a"
 ENGINES = ("#1f77b4", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22", "#d62728")
 JOINTS = ("#e41a1c", "#377eb8", "#4daf4a", "#984ea3", "#ff7f00", "#a65628")
 ENGINE_STYLES = ("-", "--", ":", "-.")
+#: the suspicious-frames track: a colour per reason of :mod:`workbench.data.inspection`
+REASON_COLOURS = {
+    "spike": "#d62728",
+    "turn": "#9467bd",
+    "linear": "#ff7f0e",
+    "bone": "#8c564b",
+    "missing": "#8f9aa8",
+    "rejected": "#e377c2",
+    "disagree": "#1f77b4",
+}
 
 
 def engine_colour(i: int) -> str:
@@ -32,6 +42,8 @@ def error_cmap():
 ERROR_LABEL = "joint error (cm)"
 #: the same scale on a take without a truth: how far cleaning moved each joint
 MOVED_LABEL = "moved from the recording (cm)"
+#: the same on the error plot's y axis, whose title says from what
+MOVED_AXIS_LABEL = "moved (cm)"
 
 
 def error_mappable(clim_cm: tuple[float, float]):
