@@ -7,7 +7,6 @@ scrolls when the window is too short for it.
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from pathlib import Path
 
