@@ -541,21 +541,47 @@ def cmd_gui(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .app.report import FORMATS, write_report
+    from .app.report import FORMATS, clean_take, write_report
     from .app.take import default_engines
+    from .app.video import SUFFIXES, write_video
 
-    if Path(args.output).suffix.lower() not in FORMATS:
+    if args.output is None and args.video is None:
+        raise UserError("report needs -o FILE.png|FILE.pdf, --video FILE.mp4, or both")
+    if args.output is not None and Path(args.output).suffix.lower() not in FORMATS:
         raise UserError(f"the report must be a .png or .pdf file, not {args.output!r}")
+    if args.video is not None and Path(args.video).suffix.lower() not in SUFFIXES:
+        raise UserError(f"the video must be an .mp4 file, not {args.video!r}")
 
     def refused(spec: str, message: str) -> None:
         print(f"note: {spec} left out: {message}", file=sys.stderr)
 
     specs = split_engine_specs(args.engine) if args.engine else default_engines()
-    path = write_report(
-        args.output, args.clip, args.corrupt, args.seed, specs, args.frame, on_refused=None if args.engine else refused
+    take, runs = clean_take(
+        args.clip, args.corrupt, args.seed, specs, on_refused=None if args.engine else refused
     )  # the defaults: those that take it
-    print(f"wrote {path}")
+    if args.output is not None:
+        print(f"wrote {write_report(args.output, take, runs, args.frame)}")
+    if args.video is not None:
+        print(f"wrote {write_video(args.video, take, runs, _video_progress())}")
     return 0
+
+
+def _video_progress():
+    """A progress bar of the video's frames on a terminal (stderr), else nothing."""
+    if not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    bar = tqdm(desc="video", unit="frame", file=sys.stderr, leave=False)
+
+    def progress(done: int, total: int) -> bool:
+        bar.total = total
+        bar.update(done - bar.n)
+        if done == total:
+            bar.close()
+        return True
+
+    return progress
 
 
 def cmd_screenshots(args) -> int:
@@ -727,8 +753,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("report", help="the app's views and plots as one figure (PNG or PDF), headless")
     take_opts(sp)
-    sp.add_argument("-o", "--output", required=True, metavar="FILE.png|FILE.pdf")
+    sp.add_argument("-o", "--output", metavar="FILE.png|FILE.pdf")
     sp.add_argument("--frame", type=int, help="frame shown in 3D (default: the middle)")
+    sp.add_argument(
+        "--video",
+        metavar="FILE.mp4",
+        help="also (or instead) the side-by-side playback with the error plot's cursor, in real time",
+    )
     sp.set_defaults(func=cmd_report)
 
     sp = sub.add_parser("screenshots", help="regenerate the app's screenshots")

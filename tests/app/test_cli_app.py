@@ -146,3 +146,32 @@ def test_an_engines_time_is_its_clean_not_its_loading(take, monkeypatch):
     make = registry.create
     monkeypatch.setattr(registry, "create", lambda spec: (clock.sleep(0.5), make(spec))[1])
     assert run_engine("identity", take).seconds < 0.25
+
+
+def test_report_writes_a_real_time_video_of_the_playback(tmp_path, tiny_walk):
+    import imageio_ffmpeg
+
+    from workbench.io import write_bvh
+
+    take = tmp_path / "walk.bvh"
+    write_bvh(take, tiny_walk)  # 120 frames at 120 fps: one second
+    out = tmp_path / "walk.mp4"
+    argv = ["report", str(take), "--engine", "identity", "--engine", "test-widths", "--video", str(out)]
+    assert cli.main(argv) == 0
+    assert out.read_bytes()[4:8] == b"ftyp"  # an MP4 file
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert frames == 30 and abs(seconds - 1.0) < 0.05  # 30 fps, in real time
+    reader = imageio_ffmpeg.read_frames(str(out))
+    assert next(reader)["size"] == (4 * 400, 440 + 300)  # noisy | identity | test-widths | truth, the plot below
+    reader.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["walk.bvh", "walk.mp4"], "no temporary files left"
+    assert cli.main(["report", str(take), "--video", str(tmp_path / "walk.avi")]) == 2
+    assert cli.main(["report", str(take)]) == 2
+
+
+def test_a_cancelled_video_leaves_no_file(tmp_path, take):
+    from workbench.app.video import video_frames, write_video
+
+    assert write_video(tmp_path / "v.mp4", take, [], progress=lambda done, total: done < 5) == tmp_path / "v.mp4"
+    assert list(tmp_path.iterdir()) == []
+    np.testing.assert_array_equal(video_frames(take)[:4], [0, 4, 8, 12])  # 120 fps shown at 30

@@ -397,3 +397,16 @@ def test_the_window_keeps_its_state_between_runs(window, tmp_path):
     again = QSettings(str(tmp_path / "workbench.ini"), QSettings.IniFormat)
     assert saved_take(again) == (s.take.source, s.take.corruption, s.take.seed, s.specs)
     assert again.value(GEOMETRY_KEY) is not None
+
+
+def test_export_video_writes_the_shown_playback(window, qtbot, tmp_path, monkeypatch):
+    import imageio_ffmpeg
+    from PySide6.QtWidgets import QFileDialog
+
+    out = tmp_path / "walk.mp4"
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *args: (str(out), ""))
+    window.controls.engines.video.click()
+    assert imageio_ffmpeg.count_frames_and_secs(str(out))[0] == 30  # 120 frames at 120 fps, shown at 30
+    assert f"wrote the video of identity to {out}" in window.controls.log.item(0).text()
+    assert not window.session.export_video(str(tmp_path / "walk.gif"))
+    assert "cannot write" in window.controls.log.item(0).text() and not (tmp_path / "walk.gif").exists()

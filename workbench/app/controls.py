@@ -12,6 +12,7 @@ from pathlib import Path
 
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
+    QApplication,
     QCheckBox,
     QComboBox,
     QFileDialog,
@@ -22,6 +23,7 @@ from PySide6.QtWidgets import (
     QLineEdit,
     QListWidget,
     QListWidgetItem,
+    QProgressDialog,
     QPushButton,
     QScrollArea,
     QSpinBox,
@@ -164,13 +166,22 @@ class EnginePanel(QGroupBox):
         self.save = QPushButton("Save cleaned BVH…")
         self.save.setToolTip("write the take as cleaned by the highlighted engine")
         self.save.clicked.connect(self._save)
+        self.video = QPushButton("Export video…")
+        self.video.setToolTip("the playback of the shown engines with the error plot's cursor, as MP4, in real time")
+        self.video.clicked.connect(self._export_video)
         self.compare = QCheckBox("Compare checked engines side by side")
         self.compare.toggled.connect(session.set_compare)
         self.follow = QCheckBox("Camera follows the root")
         self.follow.setChecked(session.follow)
         self.follow.toggled.connect(session.set_follow)
         layout = QVBoxLayout(self)
-        for w in (self.list, self.add, self.params_box, self.save, self.compare, self.follow):
+        files = QHBoxLayout()
+        files.addWidget(self.save)
+        files.addWidget(self.video)
+        for w in (self.list, self.add, self.params_box):
+            layout.addWidget(w)
+        layout.addLayout(files)
+        for w in (self.compare, self.follow):
             layout.addWidget(w)
         # per stage of the shown spec: its name, an edit per inference parameter, the
         # values of the others (kept as the spec has them)
@@ -234,6 +245,29 @@ class EnginePanel(QGroupBox):
         path, _ = QFileDialog.getSaveFileName(self, "Save the cleaned take", name, "BVH files (*.bvh)")
         if path:
             s.save_current(path)
+
+    def _export_video(self) -> None:
+        s = self.session
+        if s.take is None:
+            return
+        stem = re.sub(r"[^A-Za-z0-9.-]+", "_", Path(s.take.source).stem).strip("_") or "take"
+        path, _ = QFileDialog.getSaveFileName(self, "Export the playback as video", f"{stem}.mp4", "MP4 video (*.mp4)")
+        if not path:
+            return
+        dialog = QProgressDialog("Rendering the video…", "Cancel", 0, 0, self)
+        dialog.setWindowModality(Qt.WindowModal)
+        dialog.setMinimumDuration(300)
+
+        def progress(done: int, total: int) -> bool:
+            dialog.setMaximum(total)
+            dialog.setValue(done)
+            QApplication.processEvents()
+            return not dialog.wasCanceled()
+
+        try:
+            s.export_video(path, progress)
+        finally:
+            dialog.close()
 
     def _add(self) -> None:
         spec = self.add.text().strip()

@@ -183,7 +183,7 @@ def make_screenshots(
     compared, where the data root has it), unseen (:data:`UNSEEN_CLIP` compared, by
     :data:`UNSEEN_ENGINES`, where the data root has it) and report. ``specs``: the
     engines (default: :func:`default_engines`)."""
-    from .report import write_report
+    from .report import clean_take, write_report
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -242,6 +242,6 @@ def make_screenshots(
         settle(window)
         s.set_frame(int(np.flatnonzero(~s.take.observation.observed[:, 0]).mean()))  # inside the block
         shoot("unseen")
-    paths.append(write_report(out / "report.png", source, corruption, 0, specs, frame=frame))
+    paths.append(write_report(out / "report.png", *clean_take(source, corruption, 0, specs), frame=frame))
     window.close()
     return paths

@@ -1,6 +1,7 @@
 """``workbench report``: the app's 3D panes and plots rendered headless into one figure
 (no Qt): the panes off-screen at one frame (noisy | each engine with the truth faded in
-| truth), the scores, the error over time, the filter widths and the bone lengths.
+| truth), the scores, the error over time, the filter widths and the bone lengths. (Its
+``--video`` is :mod:`workbench.app.video`.)
 
 Units: as in the app (cm, seconds, frames). The file is written atomically.
 """
@@ -98,26 +99,18 @@ def report_figure(take: Take, runs: list[EngineRun], frame: int, selected: tuple
     return fig
 
 
-def write_report(
-    path: str | Path,
+def clean_take(
     source: str,
     corruption: str,
     seed: int,
     specs: list[str],
-    frame: int | None = None,
     on_refused: Callable[[str, str], None] | None = None,
-) -> Path:
-    """Load and corrupt ``source``, run the engines, write the report (PNG or PDF by
-    suffix) atomically. ``frame`` defaults to the middle of the take. Raises what the
-    engines raise; with ``on_refused``, an engine that refuses the take (EngineError: a
-    trained engine on another skeleton) is left out and ``on_refused(spec, message)``
-    told instead."""
+) -> tuple[Take, list[EngineRun]]:
+    """Load and corrupt ``source`` and run the engines on it. Raises what the engines
+    raise; with ``on_refused``, an engine that refuses the take (EngineError: a trained
+    engine on another skeleton) is left out and ``on_refused(spec, message)`` told instead."""
     from ..engine import EngineError
-    from ..io.atomic import atomic_path
 
-    path = Path(path)
-    if path.suffix.lower() not in FORMATS:
-        raise ValueError(f"the report must be a .png or .pdf file, not {path.name!r}")
     take = open_take(source, corruption, seed)
     runs = []
     for spec in specs:
@@ -127,9 +120,19 @@ def write_report(
             if on_refused is None:
                 raise
             on_refused(spec, str(err))
+    return take, runs
+
+
+def write_report(path: str | Path, take: Take, runs: list[EngineRun], frame: int | None = None) -> Path:
+    """Write the report of ``take`` and ``runs`` (PNG or PDF by suffix) atomically;
+    ``frame`` defaults to the middle of the take."""
+    from ..io.atomic import atomic_path
+
+    path = Path(path)
+    if path.suffix.lower() not in FORMATS:
+        raise ValueError(f"the report must be a .png or .pdf file, not {path.name!r}")
     frame = take.n_frames // 2 if frame is None else min(max(frame, 0), take.n_frames - 1)
     fig = report_figure(take, runs, frame)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=path.suffix[1:].lower())
-        tmp.chmod(0o644)  # the temporary file was private
     return path

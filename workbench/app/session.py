@@ -220,6 +220,36 @@ class Session(QObject):
         self.message.emit(f"saved {run.spec}'s cleaned take to {path}")
         return True
 
+    def export_video(self, path: str, progress=None) -> bool:
+        """Write the playback of the shown engines' runs with the error plot's cursor to
+        ``path`` (MP4, real time; :func:`workbench.app.video.write_video`, whose
+        ``progress`` can cancel it); says what happened in a ``message``. Returns whether
+        it was written."""
+        from .video import write_video
+
+        if self.take is None:
+            return False
+        self.set_playing(False)
+        runs = self.shown_runs()
+        written = []
+
+        def tell(done: int, total: int) -> bool:
+            going = progress is None or progress(done, total) is not False
+            if done == total and going:
+                written.append(True)
+            return going
+
+        try:
+            write_video(path, self.take, runs, tell)
+        except (OSError, ValueError, RuntimeError) as err:
+            self.message.emit(f"cannot write {path}: {describe(err)}")
+            return False
+        if not written:
+            self.message.emit(f"video cancelled: {path} not written")
+            return False
+        self.message.emit(f"wrote the video of {', '.join(r.spec for r in runs) or 'the take'} to {path}")
+        return True
+
     def set_current(self, spec: str) -> None:
         if spec in self.specs and spec != self.current:
             self.current = spec
