@@ -537,7 +537,37 @@ def cmd_gui(args) -> int:
 
     if args.corrupt is not None:
         parse_corruption(args.corrupt)  # a bad spec stops here, with its message
-    return run_gui(args.clip, args.corrupt, args.seed, split_engine_specs(args.engine) if args.engine else None)
+    specs = split_engine_specs(args.engine) if args.engine else None
+    if args.measure_fps is not None:
+        return _measure_fps(args, specs)
+    return run_gui(args.clip, args.corrupt, args.seed, specs)
+
+
+def _measure_fps(args, specs) -> int:
+    """Play the take in a 1200 x 800 window (under Xvfb where there is no display) and
+    print how many frames per second the 3D views showed."""
+    import shutil
+    import subprocess
+
+    from .app.main import WINDOW_SIZE, has_display, measure_playback, open_window
+    from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
+
+    if not has_display() and shutil.which("xvfb-run"):  # a real (virtual) display, as a user has
+        return subprocess.call(
+            ["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", sys.executable, "-m", "workbench", *sys.argv[1:]]
+        )
+    window = open_window(
+        args.clip or DEFAULT_CLIP, args.corrupt or DEFAULT_CORRUPTION, args.seed or 0, specs, size=WINDOW_SIZE
+    )
+    rates = measure_playback(window, args.measure_fps)
+    size = window.size()
+    print(
+        f"playback of {window.session.take.source} ({window.session.take.fps:g} fps) in a {size.width()} x "
+        f"{size.height()} window, {len(window.scene.plotter.renderers)} views: {rates['rendered_fps']:.1f} frames "
+        f"shown per second over {rates['seconds']:.1f} s"
+    )
+    window.close()
+    return 0
 
 
 def cmd_report(args) -> int:
@@ -749,6 +779,13 @@ def build_parser() -> argparse.ArgumentParser:
         "gui", help="open the desktop app (also: workbench with no arguments); with no take, the last one shown"
     )
     take_opts(sp)
+    sp.add_argument(
+        "--measure-fps",
+        type=float,
+        metavar="SECONDS",
+        help="instead of opening the app for use: play the take for SECONDS in a 1200 x 800 window and print the "
+        "frames per second the 3D views showed",
+    )
     sp.set_defaults(func=cmd_gui, clip=None, corrupt=None, seed=None)
 
     sp = sub.add_parser("report", help="the app's views and plots as one figure (PNG or PDF), headless")

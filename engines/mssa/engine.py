@@ -318,6 +318,7 @@ class MSSA(Engine):
         weight = observed.astype(float)
         weight[:, cols] = result.weight
 
+        diagnostics = {}
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
             reference, short, frames = ik_reference(
@@ -330,6 +331,7 @@ class MSSA(Engine):
             )
             if body is None:
                 world = out.reshape(F, -1, 3) + root_joint[:, None]
+                diagnostics["raw_positions"] = world
                 root, angles, translations = inverse_kinematics(
                     skeleton, world, reference, reference_joints=short, reference_frames=frames
                 )
@@ -342,7 +344,7 @@ class MSSA(Engine):
             out = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations).channels
         out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
         motion = observation.motion.with_channels(out)
-        return CleanResult(motion, {"robust_weight": weight})
+        return CleanResult(motion, diagnostics | {"robust_weight": weight})
 
     # -- fitted state -----------------------------------------------------------------
     def state_arrays(self) -> dict[str, np.ndarray]:

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 from app_helpers import FRAME, assert_colour, error_colour, rgb, settle
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import QPoint, QPointF, Qt
+from PySide6.QtGui import QWheelEvent
+from PySide6.QtWidgets import QApplication
 
 from workbench.app.take import EngineRun
 from workbench.core.motion import channel_mask
@@ -251,13 +253,36 @@ def test_opening_a_bad_take_reports_it(window, qtbot):
     assert window.session.take is not None, "the previous take stays"
 
 
-def test_the_3d_views_are_an_interactor_with_a_display_and_images_without(window):
-    from PySide6.QtGui import QGuiApplication
-    from PySide6.QtWidgets import QLabel
-
-    offscreen = QGuiApplication.platformName() == "offscreen"
-    assert isinstance(window.scene.surface, QLabel) == offscreen
-    assert window.scene.interactive == (not offscreen)
+def test_dragging_in_the_3d_views_turns_and_zooms_the_linked_cameras(window, qtbot):
+    scene = window.scene
+    cameras = [r.camera for r in scene.plotter.renderers]
+    before = [c.position for c in cameras]
+    surface = scene.surface
+    start = QPoint(surface.width() // 6, surface.height() // 2)
+    qtbot.mousePress(surface, Qt.LeftButton, pos=start)
+    for dx in range(10, 80, 10):
+        qtbot.mouseMove(surface, start + QPoint(dx, 0))
+    qtbot.mouseRelease(surface, Qt.LeftButton, pos=start + QPoint(80, 0))
+    turned = [c.position for c in cameras]
+    assert turned[0] != before[0] and all(p == turned[0] for p in turned), "turned, and every pane with it"
+    assert window.session.selected == (), "a drag is no click"
+    image = scene.grab_panes().copy()
+    distance = np.linalg.norm(np.subtract(cameras[0].position, cameras[0].focal_point))
+    wheel = QWheelEvent(
+        QPointF(start),
+        QPointF(surface.mapToGlobal(start)),
+        QPoint(),
+        QPoint(0, 120),
+        Qt.NoButton,
+        Qt.NoModifier,
+        Qt.NoScrollPhase,
+        False,
+    )
+    QApplication.sendEvent(surface, wheel)
+    assert np.linalg.norm(np.subtract(cameras[0].position, cameras[0].focal_point)) < distance
+    assert not np.array_equal(scene.grab_panes(), image), "the image shows the new view"
+    qtbot.keyClick(window.focusWidget(), Qt.Key_R)  # aims the cameras afresh
+    np.testing.assert_allclose(scene.plotter.renderers[0].camera.position, before[0], rtol=1e-6)
 
 
 def test_save_writes_the_highlighted_engines_cleaned_take_as_bvh(window, qtbot, tmp_path, monkeypatch):
@@ -410,3 +435,12 @@ def test_export_video_writes_the_shown_playback(window, qtbot, tmp_path, monkeyp
     assert f"wrote the video of identity to {out}" in window.controls.log.item(0).text()
     assert not window.session.export_video(str(tmp_path / "walk.gif"))
     assert "cannot write" in window.controls.log.item(0).text() and not (tmp_path / "walk.gif").exists()
+
+
+def test_measure_playback_counts_the_frames_shown(window):
+    from workbench.app.main import measure_playback
+
+    rates = measure_playback(window, 0.5)
+    assert 0.45 <= rates["seconds"] < 1.5 and rates["rendered_fps"] > 5  # a rate, not a timing test
+    assert abs(rates["rendered_fps"] - rates["advanced_fps"]) <= 2 / rates["seconds"]  # a render per frame shown
+    assert not window.session.playing

@@ -171,9 +171,18 @@ def draw_data_weights(fig, take: Take, runs: list[EngineRun], selected: tuple[in
 
 def draw_bone_lengths(fig, take: Take, runs: list[EngineRun], selected: tuple[int, ...]) -> None:
     """Bone-length boxes (noisy, each run; the truth as dots) for the selected joints'
-    bones, else the six longest."""
+    bones, else the six longest. A run that reports its raw output positions before IK
+    (``raw_positions``: the position-space engines) is boxed by those, its IK'd result,
+    whose bones are the skeleton's, marked beside them as exact; the other runs' boxes
+    are their results'."""
     skeleton = take.motion.skeleton
     sources = [("noisy", take.noisy.motion.positions, NOISY)]
-    sources += [(r.spec, r.track.motion.positions, engine_colour(i)) for i, r in enumerate(runs)]
+    exact = {}
+    for i, r in enumerate(runs):
+        if r.raw_positions is not None:
+            exact[len(sources)] = r.track.motion.positions
+            sources.append((f"{r.spec} before IK", r.raw_positions, engine_colour(i)))
+        else:
+            sources.append((r.spec, r.track.motion.positions, engine_colour(i)))
     truth = take.truth.positions if take.truth is not None else None
-    plot_bone_lengths(fig.subplots(), sources, skeleton, bone_choice(skeleton, selected), truth)
+    plot_bone_lengths(fig.subplots(), sources, skeleton, bone_choice(skeleton, selected), truth, exact)

@@ -144,6 +144,33 @@ def run_gui(
     return app.exec()
 
 
+def measure_playback(window, seconds: float = 10.0) -> dict[str, float]:
+    """Play ``window``'s take at normal speed for ``seconds`` (once its engines are done)
+    and count what was shown: ``rendered_fps``, the 3D views' renders per second (every
+    pane together is one render), and ``advanced_fps``, the frames the playback moved on
+    per second (the take's frame rate at most)."""
+    import time
+
+    from PySide6.QtCore import QEventLoop, QTimer
+
+    settle(window)
+    s = window.session
+    renders, frames = [0], [0]
+    observer = window.scene.plotter.ren_win.AddObserver("EndEvent", lambda *_: renders.__setitem__(0, renders[0] + 1))
+    s.frameChanged.connect(count := lambda _: frames.__setitem__(0, frames[0] + 1))
+    s.set_frame(0)
+    s.set_playing(True)
+    loop = QEventLoop()
+    QTimer.singleShot(round(seconds * 1000), loop.quit)
+    t0 = time.perf_counter()
+    loop.exec()  # the app's own event loop: no busy waiting for the cores to share
+    elapsed = time.perf_counter() - t0
+    s.set_playing(False)
+    s.frameChanged.disconnect(count)
+    window.scene.plotter.ren_win.RemoveObserver(observer)
+    return {"rendered_fps": renders[0] / elapsed, "advanced_fps": frames[0] / elapsed, "seconds": elapsed}
+
+
 def _in_catalogue(clip: str) -> bool:
     from ..data import DataNotFoundError, catalogue
 

@@ -1,33 +1,54 @@
 """The linked 3D panes, drawn by :class:`workbench.render.SkeletonScene`.
 
-With a real display the panes live in a pyvistaqt ``QtInteractor`` (mouse camera);
-with Qt's offscreen platform (no X server) an off-screen plotter renders each frame and
-a label shows the image (no mouse camera). Either way a click on a joint selects it, and
-a frame change updates points in place and renders once (``auto_update`` off; the
-interactor renders in its paint event, so asking it to repaint, not to render, avoids
-rendering twice).
+An off-screen plotter renders the panes and a widget shows the image, on a display and
+without one (Qt's offscreen platform) alike. The mouse moves the camera through a VTK
+interactor that is fed the label's mouse events (left drag turns, right drag or the
+wheel zooms, middle or Shift+left drag pans; the panes' cameras are linked; R aims them
+afresh). A click on a joint selects it. A frame change updates points in place and renders once.
+
+Why not pyvistaqt's ``QtInteractor``: it is a QOpenGLWidget, and a window holding one is
+composited through OpenGL on every repaint of any widget; on this project's software
+renderer that made a frame of the 1200 x 800 window cost about twice what rendering the
+panes off-screen and showing the image does (45 against 63 frames per second of
+playback, ``workbench gui --measure-fps``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from PySide6.QtCore import QEvent, QPoint, Qt
-from PySide6.QtGui import QImage, QPixmap
-from PySide6.QtWidgets import QLabel, QSizePolicy, QVBoxLayout, QWidget
+from PySide6.QtGui import QImage, QPainter
+from PySide6.QtWidgets import QSizePolicy, QVBoxLayout, QWidget
 
 from ..render import SkeletonScene
-from ..render.scene import PLOTTER_OPTIONS, new_plotter, plain_theme
+from ..render.scene import new_plotter
 from .take import scene_panes
 
 CLICK_SLOP_PX = 4
 DEFAULT_PANES = 3  # noisy | cleaned | truth
 
 
-def interactive_display() -> bool:
-    """True when Qt draws on a real display, where a QtInteractor works."""
-    from PySide6.QtGui import QGuiApplication
+class ImageSurface(QWidget):
+    """Shows one image, repainted in place: a new image is no new size hint, so the
+    window is not laid out again per frame (as a QLabel's ``setPixmap`` would)."""
 
-    return QGuiApplication.platformName() not in ("offscreen", "minimal")
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.image: QImage | None = None
+        self.setAttribute(Qt.WA_OpaquePaintEvent)  # the image covers the widget: no background to paint first
+        self.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Ignored)
+
+    def show_image(self, image: QImage) -> None:
+        self.image = image
+        self.update()
+
+    def paintEvent(self, _event) -> None:
+        painter = QPainter(self)
+        if self.image is None:
+            painter.fillRect(self.rect(), self.palette().window())
+        else:
+            painter.drawImage(0, 0, self.image)
+        painter.end()
 
 
 class SceneView(QWidget):
@@ -36,20 +57,21 @@ class SceneView(QWidget):
     def __init__(self, session, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.session = session
-        self.interactive = interactive_display()
         self.plotter = None
+        self.interactor = None  # the VTK interactor the mouse events are fed to
         self.scene: SkeletonScene | None = None
-        self.surface: QWidget | None = None  # the widget showing the panes
         self._built_for = None  # (take, follow, pane count) the camera was aimed for
         self._panes_key = None  # what the panes show, to skip rebuilds that change nothing
         self._press: QPoint | None = None
+        self.surface = ImageSurface(self)
+        self.surface.setFocusPolicy(Qt.ClickFocus)  # a click takes the focus from text fields
+        self.surface.installEventFilter(self)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.surface)
         self.setMinimumSize(300, 200)
         self.setFocusPolicy(Qt.StrongFocus)
-        # The surface exists before the window shows: adding the first OpenGL widget to a
-        # shown window re-creates its native window (it flickers and loses the focus).
-        self._new_surface(DEFAULT_PANES)
+        self._new_plotter(DEFAULT_PANES)
         session.takeChanged.connect(self.rebuild)
         session.runsChanged.connect(self.rebuild)
         session.viewChanged.connect(self.rebuild)
@@ -57,33 +79,18 @@ class SceneView(QWidget):
         session.selectionChanged.connect(self.show_selection)
 
     # -- building -------------------------------------------------------------------
-    def _new_surface(self, n_panes: int) -> None:
-        if self.surface is not None:
-            self.layout().removeWidget(self.surface)
-            self.plotter.close()
-            self.surface.deleteLater()
-        if self.interactive:
-            from pyvistaqt import QtInteractor
+    def _new_plotter(self, n_panes: int) -> None:
+        from vtkmodules.vtkInteractionStyle import vtkInteractorStyleTrackballCamera
+        from vtkmodules.vtkRenderingUI import vtkGenericRenderWindowInteractor
 
-            self.plotter = QtInteractor(
-                self,
-                shape=(1, n_panes),
-                auto_update=False,
-                multi_samples=0,
-                off_screen=False,
-                theme=plain_theme(),
-                **PLOTTER_OPTIONS,
-            )
-            self.plotter.window_size = list(self._pixels())  # aim the camera for the size it will have
-            self.surface = self.plotter
-        else:
-            self.plotter = new_plotter(n_panes, self._pixels())
-            self.surface = QLabel(self)
-            self.surface.setAlignment(Qt.AlignLeft | Qt.AlignTop)
-            self.surface.setSizePolicy(QSizePolicy.Ignored, QSizePolicy.Ignored)
-        self.surface.setFocusPolicy(Qt.ClickFocus)  # a click takes the focus from text fields
-        self.surface.installEventFilter(self)
-        self.layout().addWidget(self.surface)
+        if self.plotter is not None:
+            self.plotter.close()
+        self.plotter = new_plotter(n_panes, self._pixels())
+        self.interactor = vtkGenericRenderWindowInteractor()
+        self.interactor.SetRenderWindow(self.plotter.ren_win)
+        self.interactor.SetInteractorStyle(vtkInteractorStyleTrackballCamera())
+        self.interactor.SetEnableRender(False)  # the style moves the camera; show_frame renders once
+        self.interactor.Initialize()
 
     def _pixels(self) -> tuple[int, int]:
         ratio = self.devicePixelRatioF()
@@ -100,7 +107,7 @@ class SceneView(QWidget):
             return
         self._panes_key = panes_key
         if len(self.plotter.renderers) != len(panes):
-            self._new_surface(len(panes))
+            self._new_plotter(len(panes))
         key = (s.take, s.follow, len(panes))
         self.scene = SkeletonScene(
             self.plotter,
@@ -115,6 +122,11 @@ class SceneView(QWidget):
         self._built_for = key
         self.show_frame(s.frame)
 
+    def reset_camera(self) -> None:
+        """Aim the cameras afresh, as for a new take (the R key)."""
+        self._built_for = self._panes_key = None
+        self.rebuild()
+
     def show_selection(self) -> None:
         if self.scene is not None:
             self.scene.set_selection(self.session.selected)
@@ -125,11 +137,12 @@ class SceneView(QWidget):
         if self.scene is None:
             return
         self.scene.set_frame(frame)
-        if self.interactive:
-            self.surface.update()  # renders once, in paintGL, with the rest of the window
-        else:
-            self.plotter.render()
-            self.surface.setPixmap(QPixmap.fromImage(self._image()))
+        self._present()
+
+    def _present(self) -> None:
+        """Render the panes and show the image."""
+        self.plotter.render()
+        self.surface.show_image(self._image())
 
     def _image(self) -> QImage:
         img = np.ascontiguousarray(self.plotter.screenshot(return_img=True)[..., :3])
@@ -140,27 +153,59 @@ class SceneView(QWidget):
 
     def grab_panes(self) -> np.ndarray:
         """(H, W, 3) uint8 image of the panes as last drawn."""
-        if self.interactive:
-            return np.asarray(self.plotter.screenshot(return_img=True))[..., :3]
         return np.asarray(self.plotter.image)[..., :3]
 
     def resizeEvent(self, event) -> None:
         super().resizeEvent(event)
-        if not self.interactive:
-            self.plotter.window_size = list(self._pixels())
-            self.show_frame(self.session.frame)
+        self.plotter.window_size = list(self._pixels())
+        self.show_frame(self.session.frame)
 
-    # -- picking --------------------------------------------------------------------
+    # -- the mouse ------------------------------------------------------------------
+    #: Qt's mouse buttons and the VTK interactor's (press, release) events for them;
+    #: Shift+left pans, as in VTK's own windows
+    BUTTONS = {
+        Qt.LeftButton: ("LeftButtonPressEvent", "LeftButtonReleaseEvent"),
+        Qt.MiddleButton: ("MiddleButtonPressEvent", "MiddleButtonReleaseEvent"),
+        Qt.RightButton: ("RightButtonPressEvent", "RightButtonReleaseEvent"),
+    }
+
     def eventFilter(self, obj, event) -> bool:
         kind = event.type()
-        if kind == QEvent.MouseButtonPress and event.button() == Qt.LeftButton:
-            self._press = event.position().toPoint()
-        elif kind == QEvent.MouseButtonRelease and event.button() == Qt.LeftButton and self._press is not None:
-            pos = event.position().toPoint()
-            if (pos - self._press).manhattanLength() <= CLICK_SLOP_PX:
-                self.click(pos.x(), pos.y(), bool(event.modifiers() & (Qt.ControlModifier | Qt.ShiftModifier)))
-            self._press = None
+        if kind in (QEvent.MouseButtonPress, QEvent.MouseButtonRelease, QEvent.MouseMove) and obj is self.surface:
+            self._camera(event)
+            if kind == QEvent.MouseButtonPress and event.button() == Qt.LeftButton:
+                self._press = event.position().toPoint()
+            elif kind == QEvent.MouseButtonRelease and event.button() == Qt.LeftButton and self._press is not None:
+                pos = event.position().toPoint()
+                if (pos - self._press).manhattanLength() <= CLICK_SLOP_PX:
+                    self.click(pos.x(), pos.y(), bool(event.modifiers() & (Qt.ControlModifier | Qt.ShiftModifier)))
+                self._press = None
+        elif kind == QEvent.Wheel and obj is self.surface:
+            self._feed(event, "MouseWheelForwardEvent" if event.angleDelta().y() > 0 else "MouseWheelBackwardEvent")
         return False
+
+    def _camera(self, event) -> None:
+        """Feed a mouse press, release or move to the VTK interactor."""
+        kind = event.type()
+        if kind == QEvent.MouseMove:
+            if event.buttons() & (Qt.LeftButton | Qt.MiddleButton | Qt.RightButton):
+                self._feed(event, "MouseMoveEvent")
+        elif event.button() in self.BUTTONS:
+            press, release = self.BUTTONS[event.button()]
+            self._feed(event, press if kind == QEvent.MouseButtonPress else release)
+
+    def _feed(self, event, name: str) -> None:
+        ratio = self.devicePixelRatioF()
+        pos = event.position()
+        modifiers = event.modifiers()
+        self.interactor.SetEventInformationFlipY(
+            round(pos.x() * ratio),
+            round(pos.y() * ratio),
+            int(bool(modifiers & Qt.ControlModifier)),
+            int(bool(modifiers & Qt.ShiftModifier)),
+        )
+        getattr(self.interactor, name)()
+        self.show_frame(self.session.frame)  # the selection's halos follow the camera
 
     def click(self, x: float, y: float, add: bool = False) -> None:
         """Select the joint drawn at widget position (x, y); a click on nothing clears."""

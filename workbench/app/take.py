@@ -225,6 +225,12 @@ class EngineRun:
         an outlier, 0 where missing), if the engine reports them."""
         return self.diagnostics.get("robust_weight")
 
+    @property
+    def raw_positions(self) -> np.ndarray | None:
+        """(F, J, 3) a position-space engine's output positions before IK, in file units,
+        if the engine reports them."""
+        return self.diagnostics.get("raw_positions")
+
 
 def inspect_runs(take: Take, runs: list[EngineRun]) -> Inspection:
     """The take's inspection with the engines' evidence: the samples the robust ones among

@@ -1,8 +1,9 @@
 """The main window: controls on the left; the 3D panes, the transport bar (with the
 joint-error colour scale and the suspicious-frames track) and the plot tabs on the right;
 messages and worker progress in the status bar. Keys: left/right step a frame, space
-plays or pauses, N and Shift+N jump to the next and previous suspicious interval, Ctrl+S
-saves the cleaned take.
+plays or pauses, N and Shift+N jump to the next and previous suspicious interval, R aims
+the 3D cameras afresh, Ctrl+B hides or shows the control panel, Ctrl+S saves the cleaned
+take.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import QRectF, Qt
-from PySide6.QtGui import QColor, QFont, QKeySequence, QPainter, QShortcut
+from PySide6.QtGui import QColor, QFont, QKeySequence, QPainter, QPixmap, QShortcut
 from PySide6.QtWidgets import (
     QComboBox,
     QGridLayout,
@@ -73,14 +74,21 @@ class SuspectTrack(QWidget):
         self.setToolTip("suspicious frames: N jumps to the next interval, Shift+N to the one before")
         for signal in (session.takeChanged, session.runsChanged):
             signal.connect(self.refresh)
-        session.frameChanged.connect(lambda _: self.update())
+        session.frameChanged.connect(self._moved)
+        self._picture: QPixmap | None = None
+        self._cursor_x = 0
         self.refresh()
 
     def refresh(self) -> None:
         self.intervals = self.session.suspects()
         self.reasons = [r for r in REASONS if any(i.reason == r for i in self.intervals)]
         self.setFixedHeight(max(1, len(self.reasons)) * self.ROW_PX + 4)
+        self._picture = None
         self.update()
+
+    def resizeEvent(self, event) -> None:
+        self._picture = None
+        super().resizeEvent(event)
 
     def _span(self) -> tuple[float, float]:
         """The x range (pixels, this widget's) of the slider's frames, from its handle's
@@ -95,29 +103,49 @@ class SuspectTrack(QWidget):
         left, right = self._span()
         return left + (right - left) * frame / max(self.session.n_frames - 1, 1)
 
-    def paintEvent(self, _event) -> None:
-        if self.session.take is None:
-            return
-        painter = QPainter(self)
+    def _draw_intervals(self) -> QPixmap:
+        """The labels and intervals, drawn once per take, run or size (playback only
+        moves the cursor over them)."""
+        picture = QPixmap(self.size() * self.devicePixelRatioF())
+        picture.setDevicePixelRatio(self.devicePixelRatioF())
+        picture.fill(Qt.transparent)
+        painter = QPainter(picture)
         font = QFont(self.font())
         font.setPointSizeF(7.0)
         painter.setFont(font)
-        left, _ = self._span()
+        (left, right), last = self._span(), max(self.session.n_frames - 1, 1)
+        painter.setPen(QColor(TEXT))
         if not self.reasons:
-            painter.setPen(QColor(TEXT))
             painter.drawText(QRectF(0, 0, left - 6, self.height()), Qt.AlignRight | Qt.AlignVCenter, "no suspects")
         for row, reason in enumerate(self.reasons):
             y = 2 + row * self.ROW_PX
-            painter.setPen(QColor(TEXT))
             painter.drawText(QRectF(0, y - 1, left - 6, self.ROW_PX + 2), Qt.AlignRight | Qt.AlignVCenter, reason)
             colour = QColor(REASON_COLOURS[reason])
             for i in self.intervals:
                 if i.reason == reason:
-                    x0, x1 = self._x(i.first - 0.5), self._x(i.last + 0.5)
+                    x0 = left + (right - left) * (i.first - 0.5) / last
+                    x1 = left + (right - left) * (i.last + 0.5) / last
                     painter.fillRect(QRectF(x0, y, max(x1 - x0, 2.0), self.ROW_PX - 2), colour)
-        x = self._x(self.session.frame)
+        painter.end()
+        return picture
+
+    def _moved(self, frame: int) -> None:
+        """Repaint the cursor's old and new columns only."""
+        x = round(self._x(frame))
+        for column in {self._cursor_x, x}:
+            self.update(column - 2, 0, 5, self.height())
+        self._cursor_x = x
+
+    def paintEvent(self, event) -> None:
+        if self.session.take is None:
+            return
+        if self._picture is None or self._picture.size() != self.size() * self.devicePixelRatioF():
+            self._picture = self._draw_intervals()
+        painter = QPainter(self)
+        painter.drawPixmap(0, 0, self._picture)  # clipped to the region to repaint
+        self._cursor_x = round(self._x(self.session.frame))
         painter.setPen(QColor(CURSOR))
-        painter.drawLine(round(x), 0, round(x), self.height())
+        painter.drawLine(self._cursor_x, 0, self._cursor_x, self.height())
         painter.end()
 
     def _under(self, x: float, y: float) -> list:
@@ -156,7 +184,8 @@ class Transport(QWidget):
         self.slider = QSlider(Qt.Horizontal)
         self.slider.valueChanged.connect(session.set_frame)
         self.label = QLabel()
-        self.label.setMinimumWidth(150)
+        # a fixed size: a new text then repaints the label without laying the window out again
+        self.label.setFixedSize(self.label.fontMetrics().horizontalAdvance("frame 00000 / 00000   0000.00 s") + 8, 22)
         self.speed = QComboBox()
         self.speed.addItems([f"{s:g}×" for s in SPEEDS])
         self.speed.setCurrentIndex(SPEEDS.index(1.0))
@@ -235,6 +264,7 @@ class MainWindow(QMainWindow):
             (Qt.Key_Space, s.toggle_playing),
             (Qt.Key_N, lambda: s.jump_to_suspect(1)),
             (Qt.SHIFT | Qt.Key_N, lambda: s.jump_to_suspect(-1)),
+            (Qt.Key_R, self.scene.reset_camera),
         ):
             QShortcut(QKeySequence(key), self, action)
         QShortcut(QKeySequence.Save, self, self.controls.engines.save.click)  # Ctrl+S

@@ -1,5 +1,7 @@
 """Bone-length spread (Kaufmann et al. 2020, Fig. 5): for a few bones, a box per source
-(noisy, each engine) of that bone's length over all frames, the truth as a dot.
+(noisy, each engine) of that bone's length over all frames, the truth as a dot; a source
+that is a network's raw output can be marked with the length its IK'd result has (a bar:
+IK keeps the skeleton's bones exact).
 
 Units: cm (file-unit lengths times ``unit_cm``).
 """
@@ -14,10 +16,17 @@ from .timeline import outside_legend
 
 
 def plot_bone_lengths(
-    ax, sources: list[tuple[str, np.ndarray, str]], skeleton, bones: list[int], truth: np.ndarray | None = None
+    ax,
+    sources: list[tuple[str, np.ndarray, str]],
+    skeleton,
+    bones: list[int],
+    truth: np.ndarray | None = None,
+    exact: dict[int, np.ndarray] | None = None,
 ) -> None:
     """Box plots of bone lengths in cm. sources: (label, positions (F, J, 3) in file
-    units, colour); bones: child joint index of each bone shown; truth: (F, J, 3)."""
+    units, colour); bones: child joint index of each bone shown; truth: (F, J, 3);
+    exact: by source index, the positions (F, J, 3) of that source after IK, whose median
+    lengths are marked beside its boxes."""
     column = {j: k for k, j in enumerate(j for j, p in enumerate(skeleton.parents) if p >= 0)}
     cols = [column[j] for j in bones]
     n = len(sources)
@@ -37,6 +46,11 @@ def plot_bone_lengths(
             capprops=dict(color=colour),
         )
         ax.plot([], [], color=colour, lw=6, alpha=0.55, label=label)
+        if exact is not None and i in exact:
+            after = np.median(bone_lengths(exact[i], skeleton.parents)[:, cols] * skeleton.unit_cm, axis=0)
+            ax.scatter(x, after, s=90, marker="_", linewidths=2.2, color="black", zorder=5)
+    if exact:
+        ax.scatter([], [], s=90, marker="_", linewidths=2.2, color="black", label="after IK (exact)")
     if truth is not None:
         median = np.median(bone_lengths(truth, skeleton.parents)[:, cols] * skeleton.unit_cm, axis=0)
         ax.scatter(np.arange(len(bones)), median, s=40, color=TRUTH, edgecolor="white", zorder=4, label="truth")
