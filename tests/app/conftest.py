@@ -1,8 +1,8 @@
 """Fixtures for the app tests: a tiny take (120 frames of a CMU walk), fast test
 engines, the main window on it, and image helpers (pixel probes, reference images).
 
-The tests run under Xvfb when pytest-xvfb finds it (the 3D views are then a real
-QtInteractor) and without it (Qt's offscreen platform, off-screen-rendered 3D images).
+The tests run under Xvfb when pytest-xvfb finds it and without it (Qt's offscreen
+platform); the 3D views are off-screen-rendered images either way.
 Reference images: see ``test_reference_images.py`` for the command that regenerates them.
 """
 
