@@ -75,7 +75,7 @@ def test_a_failing_report_leaves_the_old_file_untouched(tmp_path, capsys):
 
 
 def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
-    from workbench.app.main import STUDIO_CLIP, UNSEEN_CLIP
+    from workbench.app.main import STUDIO_CLIP, SUSPECTS_CLIP, UNSEEN_CLIP
     from workbench.io import write_bvh
 
     take = tmp_path / "walk.bvh"
@@ -96,16 +96,20 @@ def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):
     names = sorted(p.name for p in (tmp_path / "shots").iterdir())
     studio = ["studio.png"] if any(c.id == STUDIO_CLIP for c in clips) else []  # a Bandai take by its id
     unseen = ["unseen.png"] if any(c.id == UNSEEN_CLIP for c in clips) else []
+    suspects = ["suspects.png"] if any(c.id == SUSPECTS_CLIP for c in clips) else []
     assert names == [
         "compare.png",
         "default.png",
         "heatmap.png",
         "joint.png",
+        "laptop.png",
         "outliers.png",
         "recorded.png",
         "report.png",
         *studio,
+        *suspects,
         *unseen,
+        "video.png",
     ]
     assert all((tmp_path / "shots" / n).read_bytes()[:8] == PNG for n in names)
     assert "Traceback" not in run.stderr

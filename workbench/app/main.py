@@ -32,6 +32,12 @@ STUDIO_CORRUPTION = "angular:0.5+gaps:0.04,0.1s"
 UNSEEN_CLIP = "cmu-daz/kick/10_03"
 UNSEEN_CORRUPTION = "block:1s"
 UNSEEN_ENGINES = ["lerp", "kalman", "cae"]
+#: the suspects screenshot: a real take as recorded with capture glitches (spikes, turns
+#: faster than a body can), the robust engine's rejections and the engines' disagreement
+SUSPECTS_CLIP = "cmu/other/06_14"
+SUSPECTS_ENGINES = ["mssa", "kalman", "lerp>gaussian"]
+#: the laptop screenshot: the default window on the smallest screen it is made for
+LAPTOP_SIZE = (1366, 768)
 
 
 def has_display() -> bool:
@@ -208,8 +214,11 @@ def make_screenshots(
     :data:`OUTLIER_ENGINE` on :data:`OUTLIER_CORRUPTION`), recorded (the take as
     recorded, no ground truth, every engine compared), studio (:data:`STUDIO_CLIP`
     compared, where the data root has it), unseen (:data:`UNSEEN_CLIP` compared, by
-    :data:`UNSEEN_ENGINES`, where the data root has it) and report. ``specs``: the
-    engines (default: :func:`default_engines`)."""
+    :data:`UNSEEN_ENGINES`, where the data root has it), suspects (:data:`SUSPECTS_CLIP`
+    as recorded at its largest spike, where the data root has it), laptop
+    (the default state in a :data:`LAPTOP_SIZE` window), report, and video (a frame of
+    ``workbench report --video`` of the default state, read back from the MP4).
+    ``specs``: the engines (default: :func:`default_engines`)."""
     from .report import clean_take, write_report
 
     out = Path(out_dir)
@@ -221,8 +230,13 @@ def make_screenshots(
     s.set_frame(frame)
     paths = []
 
-    def shoot(name: str) -> None:
+    def shoot(name: str, message: str = "") -> None:
+        """The window as PNG, its messages only ``message`` (earlier shots' takes' would mislead)."""
         settle(window)
+        window.controls.log.clear()
+        window.statusBar().clearMessage()
+        if message:
+            s.message.emit(message)
         path = out / f"{name}.png"
         window.grab().save(str(path))
         paths.append(path)
@@ -269,6 +283,51 @@ def make_screenshots(
         settle(window)
         s.set_frame(int(np.flatnonzero(~s.take.observation.observed[:, 0]).mean()))  # inside the block
         shoot("unseen")
-    paths.append(write_report(out / "report.png", *clean_take(source, corruption, 0, specs), frame=frame))
+    if _in_catalogue(SUSPECTS_CLIP):
+        s.set_compare(False)
+        s.set_specs([spec for spec in SUSPECTS_ENGINES if loadable(spec)])
+        s.open(SUSPECTS_CLIP, "none", 0)
+        settle(window)
+        spikes = [i for i in s.suspects() if i.reason == "spike"]
+        found = max(spikes, key=lambda i: i.score, default=None)  # the worst capture glitch
+        s.set_frame(found.first if found else 0)
+        s.select_joint(s.take.motion.skeleton.index(found.joints[0]) if found else None)
+        shoot("suspects", str(found) if found else "")
+        s.select_joint(None)
+    s.set_specs(specs)
+    s.open(source, corruption, 0)
+    s.set_compare(False)
+    window.plots.setCurrentIndex(0)
+    settle(window)
+    s.set_frame(frame)
+    window.resize(*LAPTOP_SIZE)
+    shoot("laptop")
+    take, runs = clean_take(source, corruption, 0, specs)
+    paths.append(write_report(out / "report.png", take, runs, frame=frame))
+    paths.append(_video_still(out / "video.png", take, runs, frame))
     window.close()
     return paths
+
+
+def _video_still(path: Path, take, runs, frame: int) -> Path:
+    """The video frame nearest ``frame`` of ``workbench report --video``, read back
+    from the MP4 file and written as PNG."""
+    import tempfile
+
+    import imageio_ffmpeg
+    from PySide6.QtGui import QImage
+
+    from .video import video_frames, write_video
+
+    wanted = int(np.argmin(np.abs(video_frames(take) - frame)))
+    with tempfile.TemporaryDirectory() as tmp:
+        video = write_video(Path(tmp) / "take.mp4", take, runs)
+        reader = imageio_ffmpeg.read_frames(str(video))
+        width, height = next(reader)["size"]
+        for k, data in enumerate(reader):
+            if k == wanted:
+                break
+        reader.close()
+    image = np.frombuffer(data, np.uint8).reshape(height, width, 3)
+    QImage(image.data, width, height, 3 * width, QImage.Format_RGB888).save(str(path))
+    return path
