@@ -23,9 +23,8 @@ The root is not stationary, so no short-window bases describe it: it is smoothed
 engine's smoother (:func:`workbench.engine.smoothing.smooth_observed`), as position noise reaches it.
 ``output="motion"`` returns the minimiser z of Eq. 11, as the paper does; ``"reconstruction"`` the
 mean of the covering windows' E c_s. ``robust_weight`` (F, C): the final data weight exp(-r^2 / p^2)
-of each filtered entry, 0 where missing, 1 or 0 on channels not filtered. In positions on the take's
-own skeleton, ``raw_positions`` (F, J, 3): the filtered joint positions before IK, in file units
-(their bone lengths vary; the IK'd motion's do not).
+of each filtered entry, 0 where missing, 1 or 0 on channels not filtered; in positions on the take's
+own skeleton, ``raw_positions`` (F, J, 3), the filtered joint positions before IK (file units).
 
 Beyond the paper (chosen on validation clips of the training subjects; its exact setting is
 ``mssa:adaptive=false,solver=alternating,smoothness=0,refit_prior_weight=0,start_median_frames=1,

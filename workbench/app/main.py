@@ -9,6 +9,7 @@ tests run on CI; the 3D panes then show off-screen-rendered images (see
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from pathlib import Path
@@ -110,7 +111,9 @@ def save_state(window, settings) -> None:
     s = window.session
     settings.setValue(GEOMETRY_KEY, window.saveGeometry())
     if s.take is not None:
-        for key, value in zip(TAKE_KEYS, (s.take.source, s.take.corruption, s.take.seed, s.specs)):
+        # the engines as JSON: a settings file gives a one-item list back as a string
+        values = (s.take.source, s.take.corruption, s.take.seed, json.dumps(s.specs))
+        for key, value in zip(TAKE_KEYS, values):
             settings.setValue(key, value)
     settings.sync()
 
@@ -122,7 +125,10 @@ def saved_take(settings) -> tuple[str, str, int, list[str]] | None:
     if not source or corruption is None:
         return None
     try:
-        return str(source), str(corruption), int(seed), [str(x) for x in (specs or [])]
+        specs = json.loads(specs)
+        if not isinstance(specs, list):
+            return None
+        return str(source), str(corruption), int(seed), [str(x) for x in specs]
     except (TypeError, ValueError):
         return None
 
