@@ -29,6 +29,21 @@ JOINT_PX, BONE_PX, GHOST_PX, HALO_PX = 11, 3, 5, 23
 LOOK_AT = 0.56  # the camera looks at this height (times body height) above the floor
 HALO_BEHIND = 0.04  # a selected joint's halo sits this far (times body height) behind it
 GHOST_OPACITY = 0.35
+
+
+def _faded(colour: str, share: float, under: str) -> tuple[float, float, float]:
+    """``colour`` at ``share`` over ``under``, as an opaque RGB colour."""
+    from matplotlib.colors import to_rgb
+
+    return tuple(share * a + (1 - share) * b for a, b in zip(to_rgb(colour), to_rgb(under)))
+
+
+#: the truth faded in, drawn opaque in the colour it would have at GHOST_OPACITY over the
+#: background: a translucent actor costs VTK a translucent pass, a quarter of each frame's
+#: render on the software renderer
+GHOST = _faded(TRUTH, GHOST_OPACITY, BACKGROUND)
+#: depth-buffer units the skeleton's bones are drawn nearer by, in front of the ghost near them
+SKELETON_DEPTH_OFFSET = 3000.0
 PICK_RADIUS_PX = 14
 
 
@@ -94,16 +109,17 @@ class _PaneActors:
         self.bones = self.joints = self.ghost = None
         if pane.ghost is not None:
             self.ghost = pv.PolyData(pane.ghost[0], lines=lines)
-            plotter.add_mesh(
-                self.ghost, color=TRUTH, opacity=GHOST_OPACITY, line_width=GHOST_PX, lighting=False, pickable=False
-            )
+            plotter.add_mesh(self.ghost, color=GHOST, line_width=GHOST_PX, lighting=False, pickable=False)
         if pane.points is None:
             return
         self.bones = pv.PolyData(pane.points[0], lines=lines)
-        plotter.add_mesh(self.bones, color=BONE, line_width=BONE_PX, lighting=False, pickable=False)
+        actor = plotter.add_mesh(self.bones, color=BONE, line_width=BONE_PX, lighting=False, pickable=False)
+        # in front of the opaque ghost where they meet, as through a translucent one
+        actor.mapper.SetResolveCoincidentTopologyToPolygonOffset()
+        actor.mapper.SetRelativeCoincidentTopologyLineOffsetParameters(0.0, -SKELETON_DEPTH_OFFSET)
         self.joints = pv.PolyData(pane.points[0, :n_joints])
         self.joints.point_data["error_cm"] = self._scalars(0)
-        plotter.add_mesh(
+        joints = plotter.add_mesh(
             self.joints,
             scalars="error_cm",
             clim=clim,
@@ -115,6 +131,8 @@ class _PaneActors:
             show_scalar_bar=False,
             cmap=cmap if pane.errors_cm is not None else ListedColormap([pane.colour]),
         )
+        joints.mapper.SetResolveCoincidentTopologyToPolygonOffset()  # and the joints in front of the bones
+        joints.mapper.SetRelativeCoincidentTopologyPointOffsetParameter(-2 * SKELETON_DEPTH_OFFSET)
 
     def _scalars(self, f: int) -> np.ndarray:
         p = self.pane
