@@ -392,7 +392,12 @@ def test_clean_a_folder_of_takes_into_another(tmp_path, data_root, capsys):
     assert main(["clean", str(takes), "-o", str(out), "--engine", "gaussian"]) == 2  # one take is broken
     err = capsys.readouterr().err
     assert "broken.bvh" in err and "1 of 3 takes failed" in err
-    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == ["kick.bvh", "walks", "walks/02_01.bvh"]
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == [
+        ".workbench-clean.json",
+        "kick.bvh",
+        "walks",
+        "walks/02_01.bvh",
+    ]
     assert read_bvh(out / "kick.bvh").skeleton.n_joints == 43
     assert read_bvh(out / "walks" / "02_01.bvh").n_frames == read_bvh(takes / "walks" / "02_01.bvh").n_frames
     assert main(["clean", str(takes), "-o", str(takes), "--engine", "gaussian"]) == 2  # never over the recordings

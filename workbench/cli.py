@@ -12,7 +12,6 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,13 +24,9 @@ class UserError(Exception):
 
 
 def _user_errors() -> tuple[type, ...]:
-    from .core.humanoid import HumanoidError
-    from .corruption import CorruptionSpecError
-    from .data import DataNotFoundError
-    from .engine import EngineError
-    from .io import MotionFileError
+    from .errors import user_errors
 
-    return (UserError, MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, HumanoidError, KeyError)
+    return (UserError, *user_errors())
 
 
 def _message(err: BaseException) -> str:
@@ -229,45 +224,6 @@ def cmd_corrupt(args) -> int:
     return 0
 
 
-def _clean_take(engine, source: Path, output: Path, mask: str | None, keep_reference: bool) -> None:
-    """Clean one take with ``engine`` and write it as BVH (atomically); one line on stdout."""
-    from .core.motion import Observation
-    from .data import has_reference_frame
-    from .io import write_bvh
-    from .io.mask import read_mask
-
-    motion = _read(source)
-    sidecar = Path(f"{source}.mask.json")
-    mask_path = mask or (str(sidecar) if sidecar.exists() else None)
-    observed = None
-    if mask_path:
-        observed = read_mask(mask_path, motion.skeleton, motion.n_frames)
-        if not mask:
-            print(f"note: using the mask sidecar {mask_path}", file=sys.stderr)
-    reference = None
-    if has_reference_frame(motion) and not keep_reference:
-        reference, motion = motion.channels[:1], motion.slice(1)
-        observed = None if observed is None else observed[1:]
-        print(
-            f"note: frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "
-            "(--keep-reference cleans it with the motion)",
-            file=sys.stderr,
-        )
-    obs = Observation(motion, observed)
-    t0 = time.perf_counter()
-    result = engine.clean(obs)
-    dt = time.perf_counter() - t0
-    cleaned = result.motion
-    if reference is not None:
-        cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
-    write_bvh(output, cleaned)
-    weights = f" ({engine.weights_used_})" if engine.weights_used_ else ""
-    print(
-        f"wrote {output}: {motion.n_frames} frames cleaned by {engine.spec}{weights} in {dt:.2f} s "
-        f"({motion.n_frames / max(dt, 1e-9):,.0f} frames/s); {int((~obs.observed).sum())} missing joint samples filled"
-    )
-
-
 #: the suffix of the raw take ``clean --in-place`` keeps beside it
 BACKUP_SUFFIX = ".orig"
 
@@ -309,7 +265,7 @@ def cmd_clean(args) -> int:
                 f"-o {output} is the input take: cleaning would overwrite the raw take. Name another file, "
                 f"or pass --in-place, which keeps the original as {source.name}{BACKUP_SUFFIX}"
             )
-    engine = registry.create(args.engine)
+    engine = registry.create(args.engine)  # a bad spec or unreadable weights stop here, before any take
     if args.mapping:
         from .io.mapping import read_mapping
 
@@ -317,9 +273,14 @@ def cmd_clean(args) -> int:
         for stage in getattr(engine, "stages", [engine]):
             stage.humanoid_overrides = overrides
     if not source.is_dir():
+        from .batch import clean_file
+
         if args.in_place:
             _back_up(source)
-        _clean_take(engine, source, output, args.mask, args.keep_reference)
+        report = clean_file(engine, source, output, args.mask, args.keep_reference)
+        for note in report.notes:
+            print(f"note: {note}", file=sys.stderr)
+        print(report)
         return 0
     if args.mask:
         raise UserError("--mask is one take's mask; in a folder each take's own INPUT.mask.json is used")
@@ -332,20 +293,83 @@ def cmd_clean(args) -> int:
     ]
     if not takes:
         raise UserError(f"{source} holds no .bvh or .amc file")
-    failed = 0
-    for path in takes:
-        try:
-            _clean_take(engine, path, output / path.relative_to(source).with_suffix(".bvh"), None, args.keep_reference)
-        except _user_errors() as err:  # one bad take does not stop the others
-            failed += 1
-            msg = _message(err)
-            print(f"workbench clean: error: {msg if msg.startswith(str(path)) else f'{path}: {msg}'}", file=sys.stderr)
-    if failed:
-        print(
-            f"workbench clean: {failed} of {len(takes)} takes failed (above); the others were written", file=sys.stderr
+    return _clean_library(args, engine.spec, [(p, output / p.relative_to(source).with_suffix(".bvh")) for p in takes])
+
+
+def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
+    """``clean DIR -o OUT`` on Dask (:func:`workbench.batch.clean_library`): a line per
+    take (a progress bar above them on a terminal), the failed takes and their reasons
+    at the end; exit status 2 when some failed, 130 when interrupted."""
+    from .batch import check_manifest, clean_library
+
+    settings = {"engine": spec, "keep_reference": args.keep_reference, "mapping": args.mapping}
+    try:
+        check_manifest(Path(args.output), settings, args.resume)
+    except ValueError as err:
+        raise UserError(str(err)) from None
+    bar = _progress_bar(len(jobs), sum(p.stat().st_size for p, _ in jobs))
+    done: list = []
+
+    def on_report(report) -> None:
+        done.append(report)
+        for note in report.notes:
+            _say(bar, f"note: {note}", sys.stderr)
+        _say(
+            bar,
+            f"workbench clean: error: {report}" if report.error else str(report),
+            sys.stderr if report.error else sys.stdout,
         )
+        if bar is not None:
+            bar.update(report.source.stat().st_size if report.source.exists() else 0)
+            frames = sum(r.frames for r in done)
+            bar.set_postfix_str(
+                f"{len(done)}/{len(jobs)} takes, {frames / max(bar.format_dict['elapsed'], 1e-9):,.0f} frames/s"
+            )
+
+    try:
+        reports = clean_library(
+            spec, jobs, args.keep_reference, args.mapping, args.workers, args.scheduler, args.resume, on_report
+        )
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.close()
+        written = sum(1 for r in done if r.error is None and not r.skipped)
+        print(
+            f"workbench clean: interrupted: {written} takes written, {len(jobs) - len(done)} not done (no partial "
+            "file is left); the same command with --resume goes on from there",
+            file=sys.stderr,
+        )
+        return 130
+    if bar is not None:
+        bar.close()
+    failed = [r for r in reports if r.error is not None]
+    skipped = sum(r.skipped for r in reports)
+    if skipped:
+        print(f"note: {skipped} takes were up to date (--resume) and kept", file=sys.stderr)
+    if failed:
+        print(f"workbench clean: {len(failed)} of {len(jobs)} takes failed; the others were written:", file=sys.stderr)
+        for report in failed:
+            print(f"  {report}", file=sys.stderr)
         return 2
     return 0
+
+
+def _progress_bar(n_takes: int, total_bytes: int):
+    """A tqdm bar over the takes' bytes (time left follows the size still to clean) on a
+    terminal; None in a log."""
+    if not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total_bytes, unit="B", unit_scale=True, desc=f"{n_takes} takes", file=sys.stderr)
+
+
+def _say(bar, line: str, stream) -> None:
+    """A line above the progress bar (or plainly, without one)."""
+    if bar is not None:
+        bar.write(line, file=stream)
+    else:
+        print(line, file=stream, flush=True)
 
 
 # -- bench ------------------------------------------------------------------------------
@@ -421,7 +445,14 @@ def cmd_bench(args) -> int:
             print("  " + msg, file=sys.stderr)
 
     result = run_benchmark(
-        specs, args.corrupt, clips, seeds, progress=progress, datasets={c.id: c.dataset for c in chosen}
+        specs,
+        args.corrupt,
+        clips,
+        seeds,
+        progress=progress,
+        datasets={c.id: c.dataset for c in chosen},
+        workers=args.workers,
+        scheduler=args.scheduler,
     )
     datasets = result.datasets()
     if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
@@ -435,6 +466,9 @@ def cmd_bench(args) -> int:
         print()
         print(result.per_clip_markdown(args.per_clip))
     _bench_notes(result)
+    if result.worker_peaks_mb:
+        peaks = ", ".join(f"{mb:,.0f}" for mb in result.worker_peaks_mb.values())
+        print(f"note: the {len(result.worker_peaks_mb)} workers' peak memory: {peaks} MB", file=sys.stderr)
     if args.json:
         from .io.atomic import atomic_write_text
 
@@ -708,6 +742,20 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
     sp.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="a folder: clean on a local Dask cluster of N single-threaded workers (default: the machine's cores)",
+    )
+    sp.add_argument(
+        "--scheduler", metavar="ADDRESS", help="a folder: clean on the Dask cluster whose scheduler is at ADDRESS"
+    )
+    sp.add_argument(
+        "--resume",
+        action="store_true",
+        help="a folder: skip the takes whose cleaned file is there and newer than the take (same engine and options)",
+    )
+    sp.add_argument(
         "--keep-reference",
         action="store_true",
         help="clean a T-pose frame 0 with the motion (default: write it back untouched)",
@@ -731,6 +779,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--json", metavar="PATH")
     sp.add_argument("-v", "--verbose", action="store_true")
+    sp.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="run on a local Dask cluster of N single-threaded workers, a task per engine and clip (default: here, "
+        "in this process)",
+    )
+    sp.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster whose scheduler is at ADDRESS")
     sp.set_defaults(func=cmd_bench)
 
     sp = sub.add_parser("train", help="train an engine on the training split")

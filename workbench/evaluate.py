@@ -97,6 +97,9 @@ class BenchResult:
     refused: dict[str, dict[str, str]] = field(default_factory=dict)
     dataset_of: dict[str, str] = field(default_factory=dict)
     peaks: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: on Dask, each worker's peak resident memory (MB) by its address: a fact of the run,
+    #: not a result, so not in the JSON
+    worker_peaks_mb: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         return {
@@ -198,16 +201,20 @@ def run_benchmark(
     seeds: Sequence[int] = (0,),
     progress: Callable[[str], None] | None = None,
     datasets: Mapping[str, str] | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
 ) -> BenchResult:
     """Corrupt each clip with each seed, clean it with each engine, score it. Engines are
     spec strings or ready engine objects (keyed by their ``spec``); ``datasets``: each
     clip's dataset, for summaries per dataset. A clip the corruption cannot be applied to
     (too short for a block) is skipped, and a clip an engine refuses (EngineError) is
     left out of that engine's rows; both are recorded with the reason. Raises
-    CorruptionApplyError when the corruption fits no clip."""
-    engines = {
-        (e if isinstance(e, str) else e.spec): (registry.create(e) if isinstance(e, str) else e) for e in engine_specs
-    }
+    CorruptionApplyError when the corruption fits no clip.
+
+    With ``workers`` or ``scheduler`` (spec strings only) each (engine, clip) is a task
+    on Dask distributed (:func:`workbench.batch.dask_client`), run with one thread, and
+    ``peak_mb`` is a worker's; the rows' scores are then the same bit for bit whatever
+    the number of workers (the seconds are measured where each task ran)."""
     result = BenchResult(
         corruption=str(parse_corruption(corruption)),
         seeds=list(seeds),
@@ -227,46 +234,152 @@ def run_benchmark(
     if clips and not cases:
         first = next(iter(result.skipped.items()))
         raise CorruptionApplyError(f"{result.corruption} fits none of the {len(clips)} clips; {first[0]}: {first[1]}")
-    for spec, engine in engines.items():
-        warm = False
-        refused: dict[str, str] = {}
-        for clip_id, case in cases:
-            if clip_id in refused:
-                continue
-            if progress:
-                progress(f"{spec} on {clip_id} seed {case.seed}")
-            try:
-                if not warm:  # warm-up (lazy imports, caches) outside the timed calls
-                    n = min(case.observation.n_frames, 256)
-                    engine.clean(Observation(case.observation.motion.slice(0, n), case.observation.observed[:n]))
-                    warm = True
-                t0 = time.perf_counter()
-                cleaned = engine.clean(case.observation)
-                dt = time.perf_counter() - t0
-            except EngineError as err:
-                refused[clip_id] = str(err)
-                continue
-            row = {"engine": spec, "clip": clip_id, "seed": case.seed, "frames": case.truth.n_frames, "seconds": dt}
-            row.update(metrics.score(case.truth, cleaned.motion, case.observation.observed))
-            result.rows.append(row)
-        if refused:
-            result.refused[spec] = refused
-        summary = summarise_rows([r for r in result.rows if r["engine"] == spec])
-        # memory in a clean of its own per dataset, so that its page faults stay out of the timings
-        for name, ids in result.datasets().items():
-            mine = set(ids) - set(refused)
-            accepted = [case for clip_id, case in cases if clip_id in mine]
-            if accepted:
-                longest = max(accepted, key=lambda c: c.truth.n_frames).observation
-                before = reset_peak_resident()
-                engine.clean(longest)
-                peak = resident_mb("VmHWM") - before
-                if not math.isnan(peak):
-                    result.peaks.setdefault(spec, {})[name] = max(peak, 0.0)
-        if result.peaks.get(spec):
-            summary["peak_mb"] = max(result.peaks[spec].values())
-        result.summary[spec] = summary
+    specs = [e if isinstance(e, str) else e.spec for e in engine_specs]
+    distributed = workers is not None or scheduler is not None
+    runner = _DaskRunner(specs, workers, scheduler) if distributed else _SerialRunner(engine_specs)
+    with runner:
+        for spec in specs:
+            rows, refused = runner.rows(spec, cases, progress)
+            result.rows += rows
+            if refused:
+                result.refused[spec] = refused
+            summary = summarise_rows(rows)
+            for name, ids in result.datasets().items():  # memory in a clean of its own per dataset
+                mine = set(ids) - set(refused)
+                accepted = [case for clip_id, case in cases if clip_id in mine]
+                if accepted:
+                    mb = runner.peak_mb(spec, max(accepted, key=lambda c: c.truth.n_frames).observation)
+                    if not math.isnan(mb):
+                        result.peaks.setdefault(spec, {})[name] = mb
+            if result.peaks.get(spec):
+                summary["peak_mb"] = max(result.peaks[spec].values())
+            result.summary[spec] = summary
+    result.worker_peaks_mb = getattr(runner, "worker_peaks_mb", {})
     return result
+
+
+class _SerialRunner:
+    """Cleans in this process, each engine made once."""
+
+    def __init__(self, engine_specs: Sequence[str | Engine]) -> None:
+        self.engines = {(e if isinstance(e, str) else e.spec): e for e in engine_specs}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        pass
+
+    def _engine(self, spec: str) -> Engine:
+        if isinstance(self.engines[spec], str):
+            self.engines[spec] = registry.create(spec)
+        return self.engines[spec]
+
+    def rows(self, spec, cases, progress):
+        return _clean_cases(self._engine(spec), cases, progress, spec)
+
+    def peak_mb(self, spec: str, observation: Observation) -> float:
+        return _peak_mb(self._engine(spec), observation)
+
+
+class _DaskRunner:
+    """Cleans on Dask distributed, a task per (engine, clip), every engine's tasks
+    submitted at once; rows come back in the serial order."""
+
+    def __init__(self, specs: list[str], workers: int | None, scheduler: str | None) -> None:
+        self.specs, self.workers, self.scheduler = specs, workers, scheduler
+        self.futures: dict = {}
+
+    def __enter__(self):
+        from .batch import dask_client
+
+        self.client, self.cluster = dask_client(self.workers, self.scheduler)
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        try:
+            self.worker_peaks_mb = self.client.run(resident_mb, "VmHWM")
+        finally:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+
+    def rows(self, spec, cases, progress):
+        by_clip: dict[str, list[tuple[str, Case]]] = {}
+        for clip_id, case in cases:
+            by_clip.setdefault(clip_id, []).append((clip_id, case))
+        if not self.futures:  # every engine's tasks at once: the workers never wait for the next engine
+            self.futures = {
+                (s, clip_id): self.client.submit(bench_task, s, clip_cases, pure=False)
+                for s in self.specs
+                for clip_id, clip_cases in by_clip.items()
+            }
+        rows, refused = [], {}
+        for clip_id in by_clip:
+            clip_rows, clip_refused = self.futures[spec, clip_id].result()
+            rows += clip_rows
+            refused.update(clip_refused)
+            if progress:
+                progress(f"{spec} on {clip_id}: done")
+        return rows, refused
+
+    def peak_mb(self, spec: str, observation: Observation) -> float:
+        return self.client.submit(peak_task, spec, observation, pure=False).result()
+
+
+def _clean_cases(
+    engine: Engine, cases: Sequence[tuple[str, Case]], progress: Callable[[str], None] | None, spec: str
+) -> tuple[list[dict], dict[str, str]]:
+    """(rows, refused): ``engine`` timed and scored on each (clip, case), after a warm-up
+    (lazy imports, caches) outside the timed calls, its rows keyed by ``spec``; the clips
+    it refused, with its message."""
+    rows: list[dict] = []
+    refused: dict[str, str] = {}
+    warm = False
+    for clip_id, case in cases:
+        if clip_id in refused:
+            continue
+        if progress:
+            progress(f"{spec} on {clip_id} seed {case.seed}")
+        try:
+            if not warm:
+                n = min(case.observation.n_frames, 256)
+                engine.clean(Observation(case.observation.motion.slice(0, n), case.observation.observed[:n]))
+                warm = True
+            t0 = time.perf_counter()
+            cleaned = engine.clean(case.observation)
+            dt = time.perf_counter() - t0
+        except EngineError as err:
+            refused[clip_id] = str(err)
+            continue
+        row = {"engine": spec, "clip": clip_id, "seed": case.seed, "frames": case.truth.n_frames, "seconds": dt}
+        row.update(metrics.score(case.truth, cleaned.motion, case.observation.observed))
+        rows.append(row)
+    return rows, refused
+
+
+def _peak_mb(engine: Engine, observation: Observation) -> float:
+    """The resident memory (MB) a clean of ``observation`` adds at its peak, in a clean
+    of its own (NaN where /proc does not tell)."""
+    before = reset_peak_resident()
+    engine.clean(observation)
+    return max(resident_mb("VmHWM") - before, 0.0)
+
+
+def bench_task(spec: str, cases: list[tuple[str, Case]]) -> tuple[list[dict], dict[str, str]]:
+    """:func:`_clean_cases` on a worker, with one thread and the worker's engine."""
+    from .batch import one_thread, worker_engine
+
+    with one_thread():
+        return _clean_cases(worker_engine(spec), cases, None, spec)
+
+
+def peak_task(spec: str, observation: Observation) -> float:
+    """:func:`_peak_mb` on a worker, with one thread."""
+    from .batch import one_thread, worker_engine
+
+    with one_thread():
+        return _peak_mb(worker_engine(spec), observation)
 
 
 # -- inspection -------------------------------------------------------------------------

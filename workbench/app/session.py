@@ -19,7 +19,8 @@ from collections.abc import Callable
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from ..data.inspection import Inspection, Interval
-from .take import DEFAULT_CORRUPTION, EngineRun, Take, describe, inspect_runs, open_take, run_engine
+from ..errors import describe
+from .take import DEFAULT_CORRUPTION, EngineRun, Take, inspect_runs, open_take, run_engine
 
 TICK_MS = 15
 

@@ -26,21 +26,6 @@ DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
 DEFAULT_ENGINES = ("ebd>ebf", "cae", "mssa", "lerp>gaussian", "kalman")
 
 
-def describe(err: BaseException) -> str:
-    """One line for the user: a user error's message, else the exception's type and
-    message."""
-    from ..corruption import CorruptionSpecError
-    from ..data import DataNotFoundError
-    from ..engine import EngineError
-    from ..io import MotionFileError
-
-    if isinstance(err, KeyError) and err.args:
-        return str(err.args[0])
-    if isinstance(err, (EngineError, CorruptionSpecError, MotionFileError, DataNotFoundError)):
-        return str(err)
-    return f"{type(err).__name__}: {err}"
-
-
 def loadable(spec: str) -> bool:
     """True when every stage of an engine spec names an engine that imports."""
     from .. import registry

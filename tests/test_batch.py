@@ -1,0 +1,118 @@
+"""``workbench clean DIR -o OUT`` on Dask distributed: the same bytes whatever the
+workers, weights loaded once per worker, failures reported, --resume, an existing
+cluster, interrupts."""
+
+import os
+import time
+
+import pytest
+
+from workbench import batch
+from workbench.cli import main
+
+
+@pytest.fixture
+def library(tmp_path, embedded_root):
+    """Three takes: the embedded walk and jump, and the walk again in a subfolder."""
+    takes = tmp_path / "takes"
+    (takes / "again").mkdir(parents=True)
+    walk = (embedded_root / "cmu" / "walk" / "35_31.bvh").read_bytes()
+    (takes / "walk.bvh").write_bytes(walk)
+    (takes / "jump.bvh").write_bytes((embedded_root / "cmu" / "jump" / "16_06.bvh").read_bytes())
+    (takes / "again" / "walk.bvh").write_bytes(walk)
+    return takes
+
+
+def _outputs(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*.bvh"))}
+
+
+@pytest.mark.slow
+def test_the_result_is_the_same_bit_for_bit_on_one_worker_or_two(library, tmp_path, capsys):
+    # mssa: its BLAS sums differ in the last bits with two threads, so each task runs with one
+    for workers in (1, 2):
+        assert main(["clean", str(library), "-o", str(tmp_path / f"out{workers}"), "--engine", "mssa",
+                     "--workers", str(workers)]) == 0  # fmt: skip
+    one, two = _outputs(tmp_path / "out1"), _outputs(tmp_path / "out2")
+    assert sorted(one) == ["again/walk.bvh", "jump.bvh", "walk.bvh"] and one == two
+    out = capsys.readouterr().out
+    assert out.count("wrote ") == 6 and "frames cleaned by mssa" in out
+
+
+def test_a_worker_loads_an_engine_once_and_reports_failures_as_text(library, tmp_path, monkeypatch):
+    from workbench import registry
+
+    made = []
+    create = registry.create
+    monkeypatch.setattr(registry, "create", lambda spec: made.append(spec) or create(spec))
+    monkeypatch.setattr(batch, "_ENGINES", {})  # a fresh worker
+    for name in ("walk.bvh", "jump.bvh"):
+        report = batch.clean_task("kalman", None, str(library / name), str(tmp_path / name), False)
+        assert report.error is None and report.frames > 0
+    assert made == ["kalman"], "the weights are loaded once per worker"
+    (library / "bad.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    report = batch.clean_task("kalman", None, str(library / "bad.bvh"), str(tmp_path / "bad.bvh"), False)
+    assert "bad.bvh" in report.error and not (tmp_path / "bad.bvh").exists()
+
+
+def test_resume_skips_the_takes_done_and_refuses_another_engine(library, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["clean", str(library), "-o", str(out), "--engine", "kalman", "--workers", "1"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    before = _outputs(out)
+    later = time.time() + 5
+    os.utime(library / "jump.bvh", (later, later))  # the jump was edited since
+    stale = out / ".walk.bvh.k3j2.tmp"  # left by a worker killed mid-write
+    stale.write_text("half a take")
+    assert main([*argv, "--resume"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out.count("kept ") == 2 and captured.out.count("wrote ") == 1 and "jump.bvh" in captured.out
+    assert "2 takes were up to date" in captured.err and _outputs(out) == before
+    assert stale.exists(), "a take kept is not written again"
+    assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--workers", "1"]) == 0
+    assert not stale.exists(), "the next write of a take removes what a killed one left"
+    assert main(["clean", str(library), "-o", str(out), "--engine", "gaussian", "--resume"]) == 2
+    assert "--resume would mix the two" in capsys.readouterr().err
+
+
+def test_an_existing_cluster_runs_the_same_code_path(library, tmp_path, capsys):
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        argv = ["clean", str(library), "-o", str(tmp_path / "out"), "--engine", "kalman"]
+        assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
+    assert main(["clean", str(library), "-o", str(tmp_path / "local"), "--engine", "kalman", "--workers", "1"]) == 0
+    assert _outputs(tmp_path / "out") == _outputs(tmp_path / "local")
+
+
+def test_an_interrupted_batch_says_what_is_done_and_how_to_go_on(library, tmp_path, monkeypatch, capsys):
+    def interrupted(spec, jobs, *options):
+        on_report = options[-1]
+        on_report(batch.TakeReport(jobs[0][0], jobs[0][1], frames=10, engine=spec))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch, "clean_library", interrupted)
+    assert main(["clean", str(library), "-o", str(tmp_path / "out"), "--engine", "kalman"]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted: 1 takes written, 2 not done" in err and "--resume" in err
+
+
+@pytest.mark.slow
+def test_bench_on_one_worker_or_two_scores_the_same(embedded_root, tmp_path):
+    import json
+
+    runs = {}
+    for workers in (1, 2):
+        out = tmp_path / f"bench{workers}.json"
+        argv = ["bench", "--data", str(embedded_root), "--engines", "mssa,kalman", "--corrupt", "angular:0.5",
+                "--seeds", "2", "--workers", str(workers), "--json", str(out)]  # fmt: skip
+        assert main(argv) == 0
+        runs[workers] = json.loads(out.read_text())
+    timing = ("seconds", "frames_per_s", "peak_mb")
+
+    def scores(report):
+        return [{k: v for k, v in row.items() if k not in timing} for row in report["rows"]]
+
+    assert scores(runs[1]) == scores(runs[2]) and len(runs[1]["rows"]) == 2 * 2 * 2
+    assert all(runs[w]["summary"]["mssa"]["peak_mb"] > 0 for w in runs)

@@ -1,0 +1,267 @@
+"""Cleaning takes: one file (:func:`clean_file`), or a whole library on Dask distributed
+(:func:`clean_library`, ``workbench clean DIR -o OUT``).
+
+Takes are the unit of work. Each is read, cleaned and written atomically (an interrupted
+batch leaves no partial file; a worker killed mid-write leaves a temporary file that the
+next write of that take removes) by one task, on a worker of a local cluster (``workers``
+processes of one thread) or of an existing one (``scheduler``, its address): the same
+code path either way. A worker creates each engine once and keeps it, so an engine's
+weights are loaded once per worker, not once per take.
+
+Every task cleans with one thread (BLAS and torch), so that a take's result is the same
+bit for bit whatever the number of workers; a serial run is ``workers=1``. (With two
+threads mssa's BLAS sums differ in the last bits; the other engines' results do not.)
+
+No take is split into chunks: every engine's result at a frame may depend on frames
+any distance away (the Kalman smoother's backward pass, mssa's robust fit of the whole
+take, gap bridging, each engine's per-take noise estimate), so a cut would change it.
+
+``resume``: a take whose output exists and is newer than the take (and its mask
+sidecar) is skipped, when the output folder was cleaned with the same engine and options
+(recorded in :data:`MANIFEST`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+#: the file in an output folder that records how its takes were cleaned
+MANIFEST = ".workbench-clean.json"
+
+
+@dataclass(frozen=True)
+class TakeReport:
+    """What became of one take: ``frames`` cleaned in ``seconds`` (the engine's clean
+    alone), ``filled`` missing joint samples; ``notes`` for the user; ``error`` (one
+    line) if it failed, ``skipped`` if ``resume`` found it done."""
+
+    source: Path
+    output: Path
+    frames: int = 0
+    seconds: float = 0.0
+    filled: int = 0
+    engine: str = ""
+    weights: str | None = None
+    notes: tuple[str, ...] = ()
+    error: str | None = None
+    skipped: bool = False
+
+    def __str__(self) -> str:
+        if self.error is not None:
+            return f"{self.source}: {self.error}"
+        if self.skipped:
+            return f"kept {self.output}: up to date"
+        weights = f" ({self.weights})" if self.weights else ""
+        return (
+            f"wrote {self.output}: {self.frames} frames cleaned by {self.engine}{weights} in {self.seconds:.2f} s "
+            f"({self.frames / max(self.seconds, 1e-9):,.0f} frames/s); {self.filled} missing joint samples filled"
+        )
+
+
+def clean_file(engine, source: Path, output: Path, mask: str | None = None, keep_reference: bool = False) -> TakeReport:
+    """Clean the take ``source`` with ``engine`` and write it to ``output`` as BVH
+    (atomically). Its mask is ``mask``, else the ``SOURCE.mask.json`` sidecar if there is
+    one; a T-pose reference frame 0 is written back as it is unless ``keep_reference``.
+    Raises what reading and cleaning raise (MotionFileError, EngineError, ...)."""
+    from .core.motion import Observation
+    from .data import has_reference_frame
+    from .io import read_motion, write_bvh
+    from .io.mask import read_mask
+
+    source, output = Path(source), Path(output)
+    motion = read_motion(source)
+    notes = []
+    sidecar = Path(f"{source}.mask.json")
+    mask_path = mask or (str(sidecar) if sidecar.exists() else None)
+    observed = None
+    if mask_path:
+        observed = read_mask(mask_path, motion.skeleton, motion.n_frames)
+        if not mask:
+            notes.append(f"using the mask sidecar {mask_path}")
+    reference = None
+    if has_reference_frame(motion) and not keep_reference:
+        reference, motion = motion.channels[:1], motion.slice(1)
+        observed = None if observed is None else observed[1:]
+        notes.append(
+            f"frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "
+            "(--keep-reference cleans it with the motion)"
+        )
+    observation = Observation(motion, observed)
+    t0 = time.perf_counter()
+    cleaned = engine.clean(observation).motion
+    seconds = time.perf_counter() - t0
+    if reference is not None:
+        cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
+    _remove_stale_temporaries(output)
+    write_bvh(output, cleaned)
+    return TakeReport(
+        source,
+        output,
+        motion.n_frames,
+        seconds,
+        int((~observation.observed).sum()),
+        engine.spec,
+        engine.weights_used_,
+        tuple(notes),
+    )
+
+
+def _remove_stale_temporaries(output: Path) -> None:
+    """Remove what an atomic write of ``output`` killed mid-way left beside it."""
+    for stale in output.parent.glob(f".{output.name}.*.tmp") if output.parent.is_dir() else ():
+        stale.unlink(missing_ok=True)
+
+
+# -- on a worker ------------------------------------------------------------------------
+#: the engines this process has made, by (spec, mapping file): each worker loads weights once
+_ENGINES: dict[tuple[str, str | None], object] = {}
+
+
+def worker_engine(spec: str, mapping: str | None = None):
+    """The engine ``spec`` (with the humanoid ``mapping`` file's overrides), made once per
+    process and kept."""
+    key = (spec, mapping)
+    if key not in _ENGINES:
+        from . import registry
+
+        engine = registry.create(spec)
+        if mapping:
+            from .io.mapping import read_mapping
+
+            for stage in getattr(engine, "stages", [engine]):
+                stage.humanoid_overrides = read_mapping(mapping)
+        _ENGINES[key] = engine
+    return _ENGINES[key]
+
+
+@contextmanager
+def one_thread():
+    """BLAS and torch (where the torch engines have loaded it) on one thread: a task's
+    result is then the same whatever runs beside it."""
+    import sys
+
+    from threadpoolctl import threadpool_limits
+
+    torch = sys.modules.get("torch")
+    threads = torch.get_num_threads() if torch is not None else None
+    with threadpool_limits(1):
+        if torch is not None:
+            torch.set_num_threads(1)
+        try:
+            yield
+        finally:
+            if torch is not None:
+                torch.set_num_threads(threads)
+
+
+def clean_task(spec: str, mapping: str | None, source: str, output: str, keep_reference: bool) -> TakeReport:
+    """One take, on a worker, with one thread: its report, with the reason as ``error``
+    when it failed (a bad file, a skeleton the engine refuses, or a bug)."""
+    from .errors import describe
+
+    try:
+        with one_thread():
+            return clean_file(worker_engine(spec, mapping), Path(source), Path(output), None, keep_reference)
+    except Exception as err:  # reported with the others at the end, never raised on the worker
+        return TakeReport(Path(source), Path(output), error=describe(err))
+
+
+# -- the batch --------------------------------------------------------------------------
+def _up_to_date(source: Path, output: Path) -> bool:
+    if not output.exists():
+        return False
+    newest_input = max(p.stat().st_mtime for p in (source, Path(f"{source}.mask.json")) if p.exists())
+    return output.stat().st_mtime >= newest_input
+
+
+def check_manifest(out_dir: Path, settings: dict, resume: bool) -> None:
+    """With ``resume``, refuse an output folder cleaned with other ``settings`` (ValueError
+    naming both); then record ``settings`` as the folder's (atomically)."""
+    from .io.atomic import atomic_write_text
+
+    path = out_dir / MANIFEST
+    if resume and path.exists():
+        try:
+            before = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            before = None
+        if before != settings:
+            raise ValueError(
+                f"{out_dir} was cleaned with {before}, not {settings}: --resume would mix the two; "
+                "leave out --resume to clean every take again, or name another folder"
+            )
+    atomic_write_text(path, json.dumps(settings, indent=1) + "\n")
+
+
+def clean_library(
+    spec: str,
+    jobs: list[tuple[Path, Path]],
+    keep_reference: bool = False,
+    mapping: str | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    resume: bool = False,
+    on_report: Callable[[TakeReport], None] | None = None,
+) -> list[TakeReport]:
+    """Clean every (source, output) of ``jobs`` with the engine ``spec`` on Dask
+    distributed: a local cluster of ``workers`` processes (default: the machine's
+    cores), or the cluster at ``scheduler``. ``on_report`` sees each take's report as it
+    arrives (skipped ones first); returns them all, in ``jobs``' order. Interrupting it
+    (KeyboardInterrupt) cancels the takes not done and re-raises."""
+    reports: dict[Path, TakeReport] = {}
+
+    def arrived(report: TakeReport) -> None:
+        reports[report.source] = report
+        if on_report is not None:
+            on_report(report)
+
+    todo = []
+    for source, output in jobs:
+        if resume and _up_to_date(source, output):
+            arrived(TakeReport(source, output, skipped=True))
+        else:
+            todo.append((source, output))
+    if todo:
+        from distributed import as_completed
+
+        client, cluster = dask_client(workers, scheduler, len(todo))
+        try:
+            futures = [
+                client.submit(clean_task, spec, mapping, str(s), str(o), keep_reference, pure=False) for s, o in todo
+            ]
+            try:
+                for future in as_completed(futures):
+                    arrived(future.result())
+            except BaseException:
+                client.cancel(futures)
+                raise
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    return [reports[source] for source, _ in jobs]
+
+
+def dask_client(workers: int | None, scheduler: str | None, n_tasks: int | None = None):
+    """(client, cluster): a Dask client of the cluster at ``scheduler`` (cluster None:
+    not ours to close), or of a new local cluster of ``workers`` single-threaded
+    processes (default: the machine's cores), no more than ``n_tasks`` where given."""
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        return Client(scheduler), None
+    n = max(1, min(workers or os.cpu_count() or 1, n_tasks or 1 << 30))
+    cluster = LocalCluster(
+        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+    )
+    return Client(cluster), cluster

@@ -1,0 +1,26 @@
+"""The errors a user can cause (a bad file, a wrong skeleton, a bad spec, no data) and
+their one line of text: what the command line, the app and batch workers report instead
+of a traceback."""
+
+from __future__ import annotations
+
+
+def user_errors() -> tuple[type[BaseException], ...]:
+    """The exception types whose message is meant for the user."""
+    from .core.humanoid import HumanoidError
+    from .corruption import CorruptionSpecError
+    from .data import DataNotFoundError
+    from .engine import EngineError
+    from .io import MotionFileError
+
+    return (MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, HumanoidError, KeyError)
+
+
+def describe(err: BaseException) -> str:
+    """One line for the user: a user error's message (a KeyError's without the quotes
+    str() adds), else the exception's type and message."""
+    if isinstance(err, KeyError) and err.args:
+        return str(err.args[0])
+    if isinstance(err, user_errors()):
+        return str(err)
+    return f"{type(err).__name__}: {err}"
