@@ -455,3 +455,21 @@ def test_measure_playback_counts_the_frames_shown(window):
     assert 0.45 <= rates["seconds"] < 1.5 and rates["rendered_fps"] > 5  # a rate, not a timing test
     assert abs(rates["rendered_fps"] - rates["advanced_fps"]) <= 2 / rates["seconds"]  # a render per frame shown
     assert not window.session.playing
+
+
+def test_engines_run_shown_first_then_fastest_and_say_whether_queued_or_running(window, qtbot, monkeypatch):
+    s, panel = window.session, window.controls.engines
+    queued = []
+    monkeypatch.setattr(s, "_submit", lambda what, *args: queued.append(what.removeprefix("cleaning with ")))
+    s.set_specs(["mssa", "cae", "kalman", "identity", "test-widths"], "cae")
+    # cae is shown; the classical engines have no measured speed yet and go first; identity and
+    # test-widths ran on this take already (the fixture)
+    assert queued == ["cae", "kalman", "mssa"]
+    assert panel._status("kalman") == "queued"
+    s.running["kalman"] = 0.0
+    assert panel._status("kalman") == "running…"
+    s._seconds_per_frame.update({"mssa": 1e-4, "cae": 1e-3})  # measured on an earlier take
+    queued.clear()
+    s.set_current("identity")
+    s._run(["cae", "mssa", "kalman", "identity"])
+    assert queued == ["identity", "kalman", "mssa", "cae"]

@@ -199,7 +199,7 @@ class EnginePanel(QGroupBox):
         if spec not in self.session.specs:
             return ""
         if run is None:
-            return "running…"
+            return "running…" if spec in self.session.running else "queued"
         if not isinstance(run, EngineRun):
             return "failed"
         universal = run.weights_kind == "universal weights"  # the surprise: no weights of its own

@@ -26,6 +26,7 @@ TICK_MS = 15
 
 
 class _Signals(QObject):
+    started = Signal()
     done = Signal(object)
     failed = Signal(str)
 
@@ -42,6 +43,7 @@ class _Job(QRunnable):
         if self.stale():
             self.signals.failed.emit("")
             return
+        self.signals.started.emit()
         try:
             value = self.fn()
         except Exception as err:  # shown in the window, never raised on the console
@@ -82,6 +84,8 @@ class Session(QObject):
         self._timer.timeout.connect(self._tick)
         self._clock = (0.0, 0)  # (time, frame) playback started from
         self._inspection: tuple[tuple, Inspection] | None = None  # (what it was made of, it)
+        self.running: dict[str, float] = {}  # the spec the worker is cleaning with, since when
+        self._seconds_per_frame: dict[str, float] = {}  # each spec's last run
 
     # -- the worker -----------------------------------------------------------------
     def _submit(
@@ -91,10 +95,14 @@ class Session(QObject):
         done: Callable[[object], None],
         failed: Callable[[str], None],
         wanted: Callable[[], bool],
+        started: Callable[[], None] | None = None,
     ) -> None:
         """Run ``fn`` on the worker, then ``done(value)`` or ``failed(text)`` here, unless
-        ``wanted()`` has turned False meanwhile (a newer take or request)."""
+        ``wanted()`` has turned False meanwhile (a newer take or request); ``started()``
+        here when the worker begins it."""
         job = _Job(fn, lambda: not wanted())
+        if started is not None:
+            job.signals.started.connect(lambda: wanted() and started())
 
         def finish(handler, value) -> None:
             del self._jobs[job]
@@ -145,7 +153,7 @@ class Session(QObject):
         """Show ``take`` and run every engine on it."""
         self._generation += 1
         self.set_playing(False)
-        self.take, self.runs, self.frame = take, {}, 0
+        self.take, self.runs, self.frame, self.running = take, {}, 0, {}
         self.selected = tuple(j for j in self.selected if j < take.motion.skeleton.n_joints)
         self.takeChanged.emit()
         self.frameChanged.emit(0)
@@ -167,23 +175,50 @@ class Session(QObject):
         self._run(new)
 
     def _run(self, specs: list[str]) -> None:
+        """Queue the runs of ``specs`` on the take: the shown engine first, then the
+        fastest (:meth:`expected_seconds_per_frame`), so one slow engine does not keep
+        the others waiting."""
         take = self.take
         if take is None:
             return
         generation = self._generation
-        for spec in sorted(specs, key=lambda s: s != self.current):
+        for spec in sorted(specs, key=lambda s: (s != self.current, self.expected_seconds_per_frame(s))):
+            self.running.pop(spec, None)
             self._submit(
                 f"cleaning with {spec}",
                 lambda spec=spec: run_engine(spec, take),
                 lambda run: self._arrived(run.spec, run),
                 lambda text, spec=spec: self._arrived(spec, text),
-                lambda: generation == self._generation,
+                lambda spec=spec: generation == self._generation and spec in self.specs,
+                lambda spec=spec: self._started(spec),
             )
 
+    def expected_seconds_per_frame(self, spec: str) -> float:
+        """What a run of ``spec`` is expected to cost: the seconds per frame its last run
+        took; before it has run, 0 for an engine with no trained stage (the classical
+        ones run at tens of thousands of frames a second) and infinity for a trained one."""
+        if spec in self._seconds_per_frame:
+            return self._seconds_per_frame[spec]
+        from .. import registry
+        from ..engine import EngineError
+
+        try:
+            trained = any(registry.get(stage.split(":")[0].strip()).info.trainable for stage in spec.split(">"))
+        except EngineError:
+            trained = True
+        return float("inf") if trained else 0.0
+
+    def _started(self, spec: str) -> None:
+        self.running[spec] = time.perf_counter()
+        self.runsChanged.emit()
+
     def _arrived(self, spec: str, run: EngineRun | str) -> None:
+        self.running.pop(spec, None)
         if spec not in self.specs:
             return
         self.runs[spec] = run
+        if isinstance(run, EngineRun) and self.take is not None:
+            self._seconds_per_frame[spec] = run.seconds / max(self.take.n_frames, 1)
         if isinstance(run, str):
             self.message.emit(f"engine {spec} failed: {run}")
         self.runsChanged.emit()
