@@ -116,3 +116,31 @@ def test_bench_on_one_worker_or_two_scores_the_same(embedded_root, tmp_path):
 
     assert scores(runs[1]) == scores(runs[2]) and len(runs[1]["rows"]) == 2 * 2 * 2
     assert all(runs[w]["summary"]["mssa"]["peak_mb"] > 0 for w in runs)
+
+
+def test_the_long_take_plays_forwards_and_backwards(embedded_root):
+    from workbench.data import find_clip
+    from workbench.evaluate import long_take
+
+    walk = find_clip("cmu/walk/35_31", embedded_root).load()
+    long = long_take(walk, minutes=0.25)  # 1,800 frames at 120 fps: two round trips and more
+    assert long.n_frames == 1800 and long.skeleton is walk.skeleton
+    F = walk.n_frames
+    assert (long.channels[:F] == walk.channels).all()
+    assert (long.channels[F - 1 : 2 * F - 1] == walk.channels[::-1]).all(), "back again, the turn not repeated"
+    assert (long.channels[2 * F - 2] == walk.channels[0]).all()
+
+
+@pytest.mark.slow
+def test_the_long_benchmark_times_a_clean_command_per_engine(embedded_root):
+    from workbench.data import find_clip
+    from workbench.evaluate import long_take, run_long_benchmark
+
+    long = long_take(find_clip("cmu/walk/35_31", embedded_root).load(), minutes=0.1)
+    result = run_long_benchmark(long, ["kalman", "no-such-engine"], "angular:0.5+gaps:0.01")
+    assert result.frames == 720 and result.io["read_frames_per_s"] > 0 and result.io["megabytes"] > 0
+    kalman, bad = result.rows
+    assert kalman["engine"] == "kalman" and kalman["frames_per_s"] > 0 and 0.05 < kalman["peak_gb"] < 4
+    assert kalman["command_s"] > kalman["clean_s"] and "no-such-engine" in bad["error"]
+    table = result.markdown()
+    assert "| kalman |" in table and "failed:" in table and "frames/s" in table

@@ -431,6 +431,8 @@ def cmd_bench(args) -> int:
     from .evaluate import run_benchmark
 
     specs = split_engine_specs(args.engines)
+    if args.long:
+        return _bench_long(args, specs)
     chosen = _bench_clips(args)
     clips = [(c.id, c.load()) for c in chosen]
     seeds = list(range(args.seed0, args.seed0 + args.seeds))
@@ -474,6 +476,22 @@ def cmd_bench(args) -> int:
 
         atomic_write_text(args.json, json.dumps(result.to_json(), indent=1, default=float) + "\n")
         print(f"wrote {args.json}", file=sys.stderr)
+    return 0
+
+
+def _bench_long(args, specs: list[str]) -> int:
+    """``bench --long``: the long take made from a shared take, its BVH's speeds, and a
+    ``workbench clean`` command per engine on it."""
+    from .data import find_clip
+    from .evaluate import LONG_CLIP, long_take, run_long_benchmark
+
+    motion = long_take(find_clip(LONG_CLIP, _data_root(args)).load(), args.minutes)
+    print(
+        f"long benchmark: {LONG_CLIP} forwards and backwards to {args.minutes:g} minutes, corruption {args.corrupt}, "
+        f"{len(specs)} engines, each by a workbench clean command of its own",
+        file=sys.stderr,
+    )
+    print(run_long_benchmark(motion, specs, args.corrupt, args.seed0).markdown())
     return 0
 
 
@@ -787,6 +805,13 @@ def build_parser() -> argparse.ArgumentParser:
         "in this process)",
     )
     sp.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask cluster whose scheduler is at ADDRESS")
+    sp.add_argument(
+        "--long",
+        action="store_true",
+        help="instead of the clips: a studio-length take (cmu/walk/03_04 forwards and backwards), BVH read and "
+        "write speeds, and a workbench clean command per engine on it (time, frames/s, peak memory)",
+    )
+    sp.add_argument("--minutes", type=float, default=10.0, help="the long take's length (default 10)")
     sp.set_defaults(func=cmd_bench)
 
     sp = sub.add_parser("train", help="train an engine on the training split")

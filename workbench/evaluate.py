@@ -503,3 +503,112 @@ def inspection_markdown(counts: Mapping[tuple[str, str], FlagCounts]) -> str:
         cells = [*FlagCounts.recall_precision(c.samples), *FlagCounts.recall_precision(c.frames)]
         lines.append(f"| {case} | {reason} | " + " | ".join("–" if math.isnan(v) else f"{v:.3f}" for v in cells) + " |")
     return "\n".join(lines)
+
+
+# -- the long take ----------------------------------------------------------------------
+#: the take the long benchmark plays forwards and backwards to a studio take's length
+LONG_CLIP = "cmu/walk/03_04"
+LONG_MINUTES = 10.0
+
+
+def long_take(motion: Motion, minutes: float = LONG_MINUTES) -> Motion:
+    """``motion`` played forwards, then backwards, and so on, to ``minutes`` of motion
+    (every turn continuous: the last frame of one pass is the first of the next)."""
+    frames = int(round(minutes * 60 * motion.fps))
+    there = motion.channels
+    loop = np.concatenate([there, there[-2:0:-1]])  # forwards, then back without repeating the ends
+    index = np.arange(frames) % len(loop)
+    return motion.with_channels(loop[index]).replace(name=f"{motion.name}-{minutes:g}min")
+
+
+@dataclass
+class LongResult:
+    """The long benchmark: ``io`` the BVH's size and reading and writing speeds; ``rows``
+    one per engine (its clean alone, the whole ``workbench clean`` command, the command's
+    peak memory)."""
+
+    frames: int
+    fps: float
+    io: dict[str, float]
+    rows: list[dict] = field(default_factory=list)
+
+    def markdown(self) -> str:
+        io = self.io
+        lines = [
+            f"{self.frames:,} frames ({self.frames / self.fps / 60:.1f} min at {self.fps:g} fps), "
+            f"{io['megabytes']:.0f} MB of BVH: read at {io['read_frames_per_s']:,.0f} frames/s, "
+            f"written at {io['write_frames_per_s']:,.0f} frames/s",
+            "",
+            "| engine | clean alone (s) | frames/s | whole command (s) | peak memory (GB) |",
+            "|---|---|---|---|---|",
+        ]
+        for r in self.rows:
+            if "error" in r:
+                lines.append(f"| {r['engine']} | failed: {r['error']} | | | |")
+                continue
+            lines.append(
+                f"| {r['engine']} | {r['clean_s']:.1f} | {r['frames_per_s']:,.0f} | {r['command_s']:.1f} | "
+                f"{r['peak_gb']:.2f} |"
+            )
+        return "\n".join(lines)
+
+
+def run_long_benchmark(
+    motion: Motion, engine_specs: Sequence[str], corruption: str, seed: int = 0, folder=None
+) -> LongResult:
+    """Time reading and writing ``motion`` as BVH, corrupt it (``workbench corrupt``'s
+    files: the BVH and its mask), then clean it with each engine by a ``workbench clean``
+    process of its own: its clean alone (as it reports), the whole command, its peak
+    resident memory. ``folder``: where the files go (default: a temporary folder)."""
+    import os
+    import re
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from .io import read_bvh, write_bvh
+    from .io.mask import write_mask
+
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(folder or tmp)
+        clean_path, noisy_path = root / "long.bvh", root / "long-noisy.bvh"
+        t0 = time.perf_counter()
+        write_bvh(clean_path, motion)
+        write_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        read_bvh(clean_path)
+        read_s = time.perf_counter() - t0
+        io = {
+            "megabytes": clean_path.stat().st_size / 2**20,
+            "read_frames_per_s": motion.n_frames / read_s,
+            "write_frames_per_s": motion.n_frames / write_s,
+        }
+        observation = parse_corruption(corruption).apply(motion, seed=seed)
+        write_bvh(noisy_path, observation.bridged())
+        write_mask(f"{noisy_path}.mask.json", observation.observed, motion.skeleton)
+        result = LongResult(motion.n_frames, motion.fps, io)
+        for spec in engine_specs:
+            out = root / "long-cleaned.bvh"
+            command = [sys.executable, "-m", "workbench", "clean", str(noisy_path), "-o", str(out), "--engine", spec]
+            t0 = time.perf_counter()
+            process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            _, status, usage = os.wait4(process.pid, 0)
+            command_s = time.perf_counter() - t0
+            process.returncode = os.waitstatus_to_exitcode(status)
+            stdout, stderr = process.stdout.read(), process.stderr.read()
+            found = re.search(r"in ([0-9.]+) s \(", stdout)
+            if process.returncode != 0 or found is None:
+                result.rows.append({"engine": spec, "error": (stderr.strip().splitlines() or ["?"])[-1]})
+                continue
+            clean_s = float(found.group(1))
+            result.rows.append(
+                {
+                    "engine": spec,
+                    "clean_s": clean_s,
+                    "frames_per_s": motion.n_frames / clean_s,
+                    "command_s": command_s,
+                    "peak_gb": usage.ru_maxrss / 2**20,  # kB on Linux
+                }
+            )
+    return result
