@@ -10,6 +10,7 @@ from workbench.core.motion import Observation
 from workbench.data import find_clip
 from workbench.engine import EngineError
 from workbench.io import MotionFileError, read_bvh
+from workbench.testing.takes import chain_bvh
 
 
 @pytest.fixture(scope="module")
@@ -17,23 +18,9 @@ def walk(embedded_root):
     return find_clip("cmu/walk/35_31", embedded_root).load()
 
 
-def snake_bvh(n_joints: int = 50, frames: int = 200, frame_time: str = "0.0333333") -> str:
+def snake_bvh(n_joints: int = 50, frames: int = 200) -> str:
     """A chain of ``n_joints`` joints 5 cm apart, waving: no humanoid at all."""
-    lines = [
-        "HIERARCHY",
-        "ROOT j0",
-        "{",
-        "OFFSET 0 0 0",
-        "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
-    ]
-    for i in range(1, n_joints):
-        lines += [f"JOINT j{i}", "{", "OFFSET 0 5 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
-    lines += ["End Site", "{", "OFFSET 0 5 0", "}"] + ["}"] * n_joints
-    t = np.arange(frames)[:, None] / 30.0
-    wave = np.zeros((frames, 3 * (n_joints - 1)))
-    wave[:, 0::3] = 10 * np.sin(t + np.arange(1, n_joints) / 5)
-    rows = [" ".join(f"{v:.4f}" for v in [0.0] * 6 + list(row)) for row in wave]
-    return "\n".join(lines + ["MOTION", f"Frames: {frames}", f"Frame Time: {frame_time}", *rows]) + "\n"
+    return chain_bvh(n_joints, frames, bone=5.0, wave_deg=10.0)
 
 
 def edge_takes(walk, tmp_path):

@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from workbench.io import MotionFileError, read_bvh, write_bvh
 from workbench.io.bvh import format_bvh
+from workbench.testing.takes import chain_bvh
 
 
 def all_bvh(data_root):
@@ -307,19 +308,8 @@ def test_a_hierarchy_nested_ten_thousand_deep_reads_and_writes_back(tmp_path):
     """The parser and the writer walk the tree with a stack, not recursion: a chain of
     10,000 joints (Python's recursion limit is 1,000) reads, and writes back the same."""
     n = 10_000
-    lines = [
-        "HIERARCHY",
-        "ROOT j0",
-        "{",
-        "OFFSET 0 0 0",
-        "CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation",
-    ]
-    for i in range(1, n):
-        lines += [f"JOINT j{i}", "{", "OFFSET 0 1 0", "CHANNELS 3 Zrotation Xrotation Yrotation"]
-    lines += ["End Site", "{", "OFFSET 0 1 0", "}"] + ["}"] * n
-    lines += ["MOTION", "Frames: 1", "Frame Time: 0.0083333", " ".join(["0"] * (6 + 3 * (n - 1)))]
     path = tmp_path / "deep.bvh"
-    path.write_text("\n".join(lines))
+    path.write_text(chain_bvh(n, frame_time="0.0083333"))
     motion = read_bvh(path)
     assert motion.skeleton.n_joints == n and motion.skeleton.parents[-1] == n - 2
     write_bvh(tmp_path / "again.bvh", motion)
