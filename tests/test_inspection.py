@@ -137,3 +137,17 @@ def test_inspect_measures_its_flags_on_corrupted_clips(embedded_root, capsys):
     assert {("spikes", "spike"), ("spikes", "rejected"), ("linear fills", "linear"), ("glitches", "any")} <= set(rows)
     recall, precision = (float(v) for v in rows[("spikes", "spike")].split("|")[3:5])
     assert recall >= 0.9 and precision >= 0.8
+
+
+def test_inspect_reads_a_mask_of_the_file_s_frames_t_pose_included(embedded_root, tmp_path, capsys):
+    from workbench.io.mask import sidecar_path, write_mask
+
+    take = tmp_path / "walk.bvh"
+    take.write_bytes((embedded_root / "cmu" / "walk" / "35_31.bvh").read_bytes())  # frame 0 is a T-pose
+    recorded = read_bvh(take)
+    observed = np.ones((recorded.n_frames, recorded.skeleton.n_joints), bool)
+    observed[51:61, recorded.skeleton.index("RightFoot")] = False  # file frames 51-60
+    write_mask(sidecar_path(take), observed, recorded.skeleton)
+    assert main(["inspect", str(take), "--json"]) == 0
+    missing = [i for i in json.loads(capsys.readouterr().out)["intervals"] if i["reason"] == "missing"]
+    assert [(i["first"], i["last"], i["joints"]) for i in missing] == [(50, 59, ["RightFoot"])]  # counted after it

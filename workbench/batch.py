@@ -74,18 +74,14 @@ def clean_file(engine, source: Path, output: Path, mask: str | None = None, keep
     from .core.motion import Observation
     from .data import has_reference_frame
     from .io import read_motion, write_bvh
-    from .io.mask import read_mask
+    from .io.mask import take_mask
 
     source, output = Path(source), Path(output)
     motion = read_motion(source)
     notes = []
-    sidecar = Path(f"{source}.mask.json")
-    mask_path = mask or (str(sidecar) if sidecar.exists() else None)
-    observed = None
-    if mask_path:
-        observed = read_mask(mask_path, motion.skeleton, motion.n_frames)
-        if not mask:
-            notes.append(f"using the mask sidecar {mask_path}")
+    observed, mask_path = take_mask(source, motion.skeleton, motion.n_frames, mask)
+    if mask_path and not mask:
+        notes.append(f"using the mask sidecar {mask_path}")
     reference = None
     if has_reference_frame(motion) and not keep_reference:
         reference, motion = motion.channels[:1], motion.slice(1)
@@ -178,7 +174,9 @@ def clean_task(spec: str, mapping: str | None, source: str, output: str, keep_re
 def _up_to_date(source: Path, output: Path) -> bool:
     if not output.exists():
         return False
-    newest_input = max(p.stat().st_mtime for p in (source, Path(f"{source}.mask.json")) if p.exists())
+    from .io.mask import sidecar_path
+
+    newest_input = max(p.stat().st_mtime for p in (source, sidecar_path(source)) if p.exists())
     return output.stat().st_mtime >= newest_input
 
 

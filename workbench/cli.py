@@ -157,13 +157,13 @@ def cmd_inspect(args) -> int:
     from .core.motion import Observation
     from .data import without_reference_frame
     from .data.inspection import inspect_motion
-    from .io.mask import read_mask
+    from .io.mask import take_mask
 
     recorded = _read(args.take)
     motion = without_reference_frame(recorded)
     dropped = recorded.n_frames - motion.n_frames
-    mask = Path(args.mask or args.take + ".mask.json")
-    observed = read_mask(mask, motion.skeleton, motion.n_frames) if args.mask or mask.exists() else None
+    observed, mask = take_mask(args.take, recorded.skeleton, recorded.n_frames, args.mask)  # the file's frames
+    observed = None if observed is None else observed[dropped:]
     weights, points = [], []
     for spec in args.engine or []:
         result = registry.create(spec).clean(Observation(motion, observed))
@@ -207,7 +207,7 @@ def cmd_corrupt(args) -> int:
     from .corruption import parse_corruption
     from .data import without_reference_frame
     from .io import write_bvh
-    from .io.mask import write_mask
+    from .io.mask import sidecar_path, write_mask
 
     recorded = _read(args.input)
     motion = recorded if args.keep_reference else without_reference_frame(recorded)
@@ -215,7 +215,7 @@ def cmd_corrupt(args) -> int:
         print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
     obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
     out = Path(args.output)
-    mask_path = out.with_name(out.name + ".mask.json")
+    mask_path = sidecar_path(out)
     write_bvh(out, obs.bridged())
     write_mask(mask_path, obs.observed, motion.skeleton)
     missing = 1.0 - obs.observed.mean()

@@ -568,7 +568,7 @@ def run_long_benchmark(
     from pathlib import Path
 
     from .io import read_bvh, write_bvh
-    from .io.mask import write_mask
+    from .io.mask import sidecar_path, write_mask
 
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(folder or tmp)
@@ -586,7 +586,7 @@ def run_long_benchmark(
         }
         observation = parse_corruption(corruption).apply(motion, seed=seed)
         write_bvh(noisy_path, observation.bridged())
-        write_mask(f"{noisy_path}.mask.json", observation.observed, motion.skeleton)
+        write_mask(sidecar_path(noisy_path), observation.observed, motion.skeleton)
         result = LongResult(motion.n_frames, motion.fps, io)
         for spec in engine_specs:
             out = root / "long-cleaned.bvh"

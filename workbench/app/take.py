@@ -57,12 +57,9 @@ def load_motion(source: str) -> Motion:
 
 def sidecar_mask(source: str, motion: Motion) -> np.ndarray | None:
     """The observed mask (F, J) written beside a corrupted BVH by ``workbench corrupt``."""
-    mask = Path(str(source) + ".mask.json")
-    if not mask.exists():
-        return None
-    from ..io.mask import read_mask
+    from ..io.mask import take_mask
 
-    return read_mask(mask, motion.skeleton, motion.n_frames)
+    return take_mask(source, motion.skeleton, motion.n_frames)[0]
 
 
 @dataclass(frozen=True)

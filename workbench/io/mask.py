@@ -26,6 +26,21 @@ def mask_to_json(observed: np.ndarray, skeleton: Skeleton) -> str:
     return json.dumps(doc, indent=1) + "\n"
 
 
+def sidecar_path(take: str | Path) -> Path:
+    """Where the observed mask of ``take`` is kept: ``TAKE.mask.json`` beside it."""
+    return Path(f"{take}.mask.json")
+
+
+def take_mask(take: str | Path, skeleton: Skeleton, n_frames: int, mask: str | Path | None = None):
+    """(observed (F, J) or None, the file it came from or None): the mask ``mask`` names,
+    else ``take``'s sidecar where there is one, checked against the take's ``skeleton``
+    and its ``n_frames`` frames as in the file."""
+    path = Path(mask) if mask else sidecar_path(take)
+    if not mask and not path.exists():
+        return None, None
+    return read_mask(path, skeleton, n_frames), path
+
+
 def write_mask(path: str | Path, observed: np.ndarray, skeleton: Skeleton) -> None:
     atomic_write_text(path, mask_to_json(np.asarray(observed, bool), skeleton))
 
