@@ -466,7 +466,7 @@ def test_engines_run_shown_first_then_fastest_and_say_whether_queued_or_running(
     # test-widths ran on this take already (the fixture)
     assert queued == ["cae", "kalman", "mssa"]
     assert panel._status("kalman") == "queued"
-    s.running["kalman"] = 0.0
+    s.running.add("kalman")
     assert panel._status("kalman") == "running…"
     s._seconds_per_frame.update({"mssa": 1e-4, "cae": 1e-3})  # measured on an earlier take
     queued.clear()

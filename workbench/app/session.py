@@ -20,7 +20,7 @@ from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from ..data.inspection import Inspection, Interval
 from ..errors import describe
-from .take import DEFAULT_CORRUPTION, EngineRun, Take, inspect_runs, open_take, run_engine
+from .take import DEFAULT_CORRUPTION, EngineRun, Take, inspect_runs, open_take, run_engine, stage_engines
 
 TICK_MS = 15
 
@@ -84,7 +84,7 @@ class Session(QObject):
         self._timer.timeout.connect(self._tick)
         self._clock = (0.0, 0)  # (time, frame) playback started from
         self._inspection: tuple[tuple, Inspection] | None = None  # (what it was made of, it)
-        self.running: dict[str, float] = {}  # the spec the worker is cleaning with, since when
+        self.running: set[str] = set()  # the specs the worker has begun cleaning with
         self._seconds_per_frame: dict[str, float] = {}  # each spec's last run
 
     # -- the worker -----------------------------------------------------------------
@@ -153,7 +153,7 @@ class Session(QObject):
         """Show ``take`` and run every engine on it."""
         self._generation += 1
         self.set_playing(False)
-        self.take, self.runs, self.frame, self.running = take, {}, 0, {}
+        self.take, self.runs, self.frame, self.running = take, {}, 0, set()
         self.selected = tuple(j for j in self.selected if j < take.motion.skeleton.n_joints)
         self.takeChanged.emit()
         self.frameChanged.emit(0)
@@ -183,7 +183,6 @@ class Session(QObject):
             return
         generation = self._generation
         for spec in sorted(specs, key=lambda s: (s != self.current, self.expected_seconds_per_frame(s))):
-            self.running.pop(spec, None)
             self._submit(
                 f"cleaning with {spec}",
                 lambda spec=spec: run_engine(spec, take),
@@ -199,21 +198,20 @@ class Session(QObject):
         ones run at tens of thousands of frames a second) and infinity for a trained one."""
         if spec in self._seconds_per_frame:
             return self._seconds_per_frame[spec]
-        from .. import registry
         from ..engine import EngineError
 
         try:
-            trained = any(registry.get(stage.split(":")[0].strip()).info.trainable for stage in spec.split(">"))
+            trained = any(engine.info.trainable for engine in stage_engines(spec))
         except EngineError:
             trained = True
         return float("inf") if trained else 0.0
 
     def _started(self, spec: str) -> None:
-        self.running[spec] = time.perf_counter()
+        self.running.add(spec)
         self.runsChanged.emit()
 
     def _arrived(self, spec: str, run: EngineRun | str) -> None:
-        self.running.pop(spec, None)
+        self.running.discard(spec)
         if spec not in self.specs:
             return
         self.runs[spec] = run

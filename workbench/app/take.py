@@ -26,14 +26,20 @@ DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
 DEFAULT_ENGINES = ("ebd>ebf", "cae", "mssa", "lerp>gaussian", "kalman")
 
 
+def stage_engines(spec: str) -> list:
+    """The engine class of each stage of an engine spec, without making them (raises
+    EngineError for a name that is not registered or does not import)."""
+    from .. import registry
+
+    return [registry.get(stage.split(":")[0].strip()) for stage in spec.split(">")]
+
+
 def loadable(spec: str) -> bool:
     """True when every stage of an engine spec names an engine that imports."""
-    from .. import registry
     from ..engine import EngineError
 
     try:
-        for stage in spec.split(">"):
-            registry.get(stage.split(":")[0].strip())
+        stage_engines(spec)
     except EngineError:
         return False
     return True
