@@ -99,8 +99,9 @@ class SuspectTrack(QWidget):
         left = self.slider.x() - self.x() + handle / 2  # the slider is a sibling
         return left, left + self.slider.width() - handle
 
-    def _x(self, frame: float) -> float:
-        left, right = self._span()
+    def _x(self, frame: float, span: tuple[float, float] | None = None) -> float:
+        """The x (pixels) of ``frame`` under the slider (``span``: :meth:`_span`, if known)."""
+        left, right = span or self._span()
         return left + (right - left) * frame / max(self.session.n_frames - 1, 1)
 
     def _draw_intervals(self) -> QPixmap:
@@ -113,7 +114,8 @@ class SuspectTrack(QWidget):
         font = QFont(self.font())
         font.setPointSizeF(7.0)
         painter.setFont(font)
-        (left, right), last = self._span(), max(self.session.n_frames - 1, 1)
+        span = self._span()
+        left = span[0]
         painter.setPen(QColor(TEXT))
         if not self.reasons:
             painter.drawText(QRectF(0, 0, left - 6, self.height()), Qt.AlignRight | Qt.AlignVCenter, "no suspects")
@@ -123,8 +125,7 @@ class SuspectTrack(QWidget):
             colour = QColor(REASON_COLOURS[reason])
             for i in self.intervals:
                 if i.reason == reason:
-                    x0 = left + (right - left) * (i.first - 0.5) / last
-                    x1 = left + (right - left) * (i.last + 0.5) / last
+                    x0, x1 = self._x(i.first - 0.5, span), self._x(i.last + 0.5, span)
                     painter.fillRect(QRectF(x0, y, max(x1 - x0, 2.0), self.ROW_PX - 2), colour)
         painter.end()
         return picture

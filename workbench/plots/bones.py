@@ -14,6 +14,9 @@ from ..metrics import bone_lengths
 from .style import TRUTH
 from .timeline import outside_legend
 
+#: the mark of a bone's length after IK beside the raw output's box
+EXACT_MARK = dict(s=90, marker="_", linewidths=2.2, color="black")
+
 
 def plot_bone_lengths(
     ax,
@@ -48,9 +51,9 @@ def plot_bone_lengths(
         ax.plot([], [], color=colour, lw=6, alpha=0.55, label=label)
         if exact is not None and i in exact:
             after = np.median(bone_lengths(exact[i], skeleton.parents)[:, cols] * skeleton.unit_cm, axis=0)
-            ax.scatter(x, after, s=90, marker="_", linewidths=2.2, color="black", zorder=5)
+            ax.scatter(x, after, zorder=5, **EXACT_MARK)
     if exact:
-        ax.scatter([], [], s=90, marker="_", linewidths=2.2, color="black", label="after IK (exact)")
+        ax.scatter([], [], label="after IK (exact)", **EXACT_MARK)
     if truth is not None:
         median = np.median(bone_lengths(truth, skeleton.parents)[:, cols] * skeleton.unit_cm, axis=0)
         ax.scatter(np.arange(len(bones)), median, s=40, color=TRUTH, edgecolor="white", zorder=4, label="truth")
