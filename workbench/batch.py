@@ -230,8 +230,7 @@ def clean_library(
     if todo:
         from distributed import as_completed
 
-        client, cluster = dask_client(workers, scheduler, len(todo))
-        try:
+        with dask_client(workers, scheduler, len(todo)) as client:
             futures = [
                 client.submit(clean_task, spec, mapping, str(s), str(o), keep_reference, pure=False) for s, o in todo
             ]
@@ -241,25 +240,27 @@ def clean_library(
             except BaseException:
                 client.cancel(futures)
                 raise
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
     return [reports[source] for source, _ in jobs]
 
 
+@contextmanager
 def dask_client(workers: int | None, scheduler: str | None, n_tasks: int | None = None):
-    """(client, cluster): a Dask client of the cluster at ``scheduler`` (cluster None:
-    not ours to close), or of a new local cluster of ``workers`` single-threaded
-    processes (default: the machine's cores), no more than ``n_tasks`` where given."""
+    """A Dask client of the cluster at ``scheduler`` (left running), or of a new local
+    cluster of ``workers`` single-threaded processes (default: the machine's cores), no
+    more than ``n_tasks`` where given, closed with the client."""
     import logging
 
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        return Client(scheduler), None
+        with Client(scheduler) as client:
+            yield client
+        return
     n = max(1, min(workers or os.cpu_count() or 1, n_tasks or 1 << 30))
-    cluster = LocalCluster(
-        n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
-    )
-    return Client(cluster), cluster
+    with (
+        LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        yield client

@@ -293,16 +293,15 @@ class _DaskRunner:
     def __enter__(self):
         from .batch import dask_client
 
-        self.client, self.cluster = dask_client(self.workers, self.scheduler)
+        self._session = dask_client(self.workers, self.scheduler)
+        self.client = self._session.__enter__()
         return self
 
-    def __exit__(self, *_exc) -> None:
+    def __exit__(self, *exc) -> None:
         try:
             self.worker_peaks_mb = self.client.run(resident_mb, "VmHWM")
         finally:
-            self.client.close()
-            if self.cluster is not None:
-                self.cluster.close()
+            self._session.__exit__(*exc)
 
     def rows(self, spec, cases, progress):
         by_clip: dict[str, list[tuple[str, Case]]] = {}
