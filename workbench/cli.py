@@ -260,7 +260,9 @@ def cmd_clean(args) -> int:
         raise UserError("name the cleaned take's file with -o (or clean a BVH take over itself with --in-place)")
     else:
         output = Path(args.output)
-        if not source.is_dir() and output.resolve() == source.resolve():
+        if not source.is_dir() and (
+            output.resolve() == source.resolve() or output.exists() and output.samefile(source)
+        ):
             raise UserError(
                 f"-o {output} is the input take: cleaning would overwrite the raw take. Name another file, "
                 f"or pass --in-place, which keeps the original as {source.name}{BACKUP_SUFFIX}"

@@ -1,6 +1,6 @@
-"""The errors a user can cause (a bad file, a wrong skeleton, a bad spec, no data) and
-their one line of text: what the command line, the app and batch workers report instead
-of a traceback."""
+"""The errors a user can cause (a bad file, a wrong skeleton, a bad spec, no data, an
+output that cannot be written) and their one line of text: what the command line, the
+app and batch workers report instead of a traceback."""
 
 from __future__ import annotations
 
@@ -11,9 +11,17 @@ def user_errors() -> tuple[type[BaseException], ...]:
     from .corruption import CorruptionSpecError
     from .data import DataNotFoundError
     from .engine import EngineError
-    from .io import MotionFileError
+    from .io import MotionFileError, OutputFileError
 
-    return (MotionFileError, EngineError, CorruptionSpecError, DataNotFoundError, HumanoidError, KeyError)
+    return (
+        MotionFileError,
+        OutputFileError,
+        EngineError,
+        CorruptionSpecError,
+        DataNotFoundError,
+        HumanoidError,
+        KeyError,
+    )
 
 
 def describe(err: BaseException) -> str:

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from ..core.motion import Motion
 from .bvh import read_bvh, write_bvh
-from .errors import MotionFileError
+from .errors import MotionFileError, OutputFileError
 
 #: file suffixes :func:`read_motion` reads (compared lower-case)
 MOTION_SUFFIXES = (".bvh", ".amc")
@@ -20,4 +20,4 @@ def read_motion(path: str | Path) -> Motion:
     return read_bvh(path)
 
 
-__all__ = ["read_bvh", "write_bvh", "read_motion", "MotionFileError", "MOTION_SUFFIXES"]
+__all__ = ["read_bvh", "write_bvh", "read_motion", "MotionFileError", "OutputFileError", "MOTION_SUFFIXES"]

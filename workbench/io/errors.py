@@ -17,6 +17,22 @@ class MotionFileError(ValueError):
         super().__init__(f"{where}: {message}")
 
 
+class OutputFileError(OSError):
+    """A file cannot be written (a full disk, a read-only folder, no permission): ``str(err)``
+    names the file, the system's reason, and that nothing there was lost, since every
+    output is written atomically (:func:`workbench.io.atomic.atomic_path`)."""
+
+    def __init__(self, path: str | Path, cause: OSError) -> None:
+        super().__init__(cause.errno, cause.strerror or str(cause))
+        self.path = str(path)
+
+    def __str__(self) -> str:
+        return (
+            f"{self.path}: cannot write it ({self.strerror}); nothing was written there, "
+            "and any file it would have replaced is as it was"
+        )
+
+
 def read_json_file(path: str | Path, kind: str) -> object:
     """The JSON document in ``path``; a :class:`MotionFileError` naming the file and ``kind``
     (e.g. "mask", "mapping") where it cannot be read or is not JSON."""
