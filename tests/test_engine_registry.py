@@ -167,7 +167,7 @@ def test_train_writes_its_variant_s_folder_with_a_manifest_of_what_it_used(tmp_p
     monkeypatch.chdir(tmp_path)
     assert main(["train", "kalman-learned"]) == 0
     manifest = json.loads((tmp_path / "runs" / "kalman-learned" / "manifest.json").read_text())
-    assert manifest["format_version"] == 2 and manifest["variant"] == "kalman-learned"
+    assert manifest["format_version"] == 3 and manifest["variant"] == "kalman-learned"
     training = manifest["training"]
     assert training["datasets"] == [{"name": "cmu", "terms": dataset_terms("cmu")}]
     assert len(training["clips"]) == 36 and all(c.startswith("cmu/") for c in training["clips"])

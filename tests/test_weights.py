@@ -65,7 +65,7 @@ def test_pickled_arrays_are_never_unpickled(saved):
     np.savez(saved / WEIGHTS_FILE, w=np.array([{"payload": 1}], dtype=object))
     manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
     manifest["sha256"] = weights.sha256_file(saved / WEIGHTS_FILE)  # a matching checksum
-    (saved / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
+    (saved / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
     with pytest.raises(EngineError, match="unreadable weights"):
         load_weights(saved)
 
@@ -97,7 +97,7 @@ def test_weights_that_do_not_say_their_frame_rate_are_refused(tmp_path):
     shutil.copytree(registry.create("mssa").default_weights_dir() / "cmu", folder)
     manifest = json.loads((folder / "manifest.json").read_text())
     del manifest["fps"]
-    (folder / "manifest.json").write_text(json.dumps(manifest))
+    (folder / "manifest.json").write_text(json.dumps(weights.signed(manifest)))
     with pytest.raises(EngineError, match="does not say the frame rate they were trained at; retrain them"):
         registry.create(f"mssa:weights={folder}")
 
@@ -110,6 +110,76 @@ def test_a_manifest_cannot_name_a_file_out_of_its_folder(tmp_path, name):
     (tmp_path / WEIGHTS_FILE).write_bytes((folder / WEIGHTS_FILE).read_bytes())  # ../weights.npz
     manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
     manifest["file"] = name
-    (folder / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
+    (folder / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
     with pytest.raises(EngineError, match="plain file name in the manifest's folder"):
         load_weights(folder)
+
+
+def test_a_truncated_weights_file_or_manifest_is_refused_by_name(saved):
+    data = (saved / WEIGHTS_FILE).read_bytes()
+    (saved / WEIGHTS_FILE).write_bytes(data[: len(data) // 2])
+    with pytest.raises(EngineError, match=f"{saved / WEIGHTS_FILE}: checksum does not match"):
+        load_weights(saved)
+    (saved / WEIGHTS_FILE).write_bytes(data)
+    text = (saved / MANIFEST_FILE).read_text(encoding="utf-8")
+    (saved / MANIFEST_FILE).write_text(text[: len(text) // 2], encoding="utf-8")
+    with pytest.raises(EngineError, match=f"{saved / MANIFEST_FILE}: unreadable weights manifest"):
+        load_weights(saved)
+
+
+@pytest.mark.parametrize(
+    "edit",
+    [
+        lambda m: m["params"].update(k=2),  # another parameter value
+        lambda m: m.update(skeleton_signature="y"),  # weights passed off for another skeleton
+        lambda m: m.update(sha256="0" * 64),
+        lambda m: m.pop("manifest_sha256"),
+    ],
+)
+def test_a_manifest_edited_after_it_was_saved_is_refused(saved, edit):
+    manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
+    edit(manifest)
+    (saved / MANIFEST_FILE).write_text(json.dumps(manifest), encoding="utf-8")
+    with pytest.raises(EngineError, match=f"{saved / MANIFEST_FILE}: the manifest was changed after it was saved"):
+        load_weights(saved)
+
+
+@pytest.mark.parametrize(
+    ("version", "remedy"), [(weights.FORMAT_VERSION + 1, "saved by a newer workbench: update it"), (1, "retrain")]
+)
+def test_a_manifest_of_another_format_version_is_refused_with_what_to_do(saved, version, remedy):
+    manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
+    manifest["format_version"] = version
+    (saved / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
+    with pytest.raises(EngineError, match=f"manifest format {version}, and this workbench reads format 3; .*{remedy}"):
+        load_weights(saved)
+
+
+def test_weights_swapped_for_another_engines_are_refused(tmp_path):
+    """Each trained engine's committed weights, copied into another's folder whole."""
+    import shutil
+
+    from workbench import registry
+
+    folder = tmp_path / "w"
+    shutil.copytree(registry.create("kalman-learned").default_weights_dir() / "cmu", folder)
+    for spec in ("mssa", "cae", "ebf"):
+        with pytest.raises(EngineError, match=f"these weights are for engine 'kalman-learned', not '{spec}'"):
+            registry.create(f"{spec}:weights={folder}")
+
+
+def test_no_code_of_the_package_can_unpickle_a_file():
+    """The one loader of arrays is load_weights, with allow_pickle=False; nothing calls
+    torch.load, pickle or np.load otherwise (a source scan, so a new call site fails here)."""
+    import re
+
+    root = Path(weights.__file__).resolve().parents[2]
+    calls = re.compile(r"\b(torch\.load|pickle\.loads?|cPickle|dill|joblib\.load|np\.load|numpy\.load)\s*\(")
+    found = {
+        f"{path.relative_to(root)}: {line.strip()}"
+        for folder in ("workbench", "engines")
+        for path in (root / folder).rglob("*.py")
+        for line in path.read_text(encoding="utf-8").splitlines()
+        if calls.search(line)
+    }
+    assert found == {"workbench/engine/weights.py: with np.load(path, allow_pickle=False) as data:"}

@@ -361,6 +361,8 @@ def test_loaded_weights_bring_their_trained_and_training_parameters_not_the_infe
     engine no longer has, or a manifest of an older format, refused by name."""
     import json
 
+    from workbench.engine.weights import signed
+
     engine, _ = tiny_fit
     manifest = engine.save(tmp_path)
     loaded = CAE(CAE.Params(views=4, hole_blend_frames=0)).load(tmp_path).params
@@ -368,15 +370,15 @@ def test_loaded_weights_bring_their_trained_and_training_parameters_not_the_infe
     assert (loaded.epochs, loaded.window_frames) == (1, 64)  # training: how these weights were made
     data = json.loads(manifest.read_text())
     del data["params"]["input_fill"]  # saved before the parameter existed: at its default
-    manifest.write_text(json.dumps(data))
+    manifest.write_text(json.dumps(signed(data)))
     assert CAE().load(tmp_path).params.input_fill == CAE.Params().input_fill
     data["params"]["mirror_average"] = True  # a parameter the engine no longer has
-    manifest.write_text(json.dumps(data))
+    manifest.write_text(json.dumps(signed(data)))
     with pytest.raises(EngineError, match=r"parameters engine 'cae' does not have \(mirror_average\)"):
         CAE().load(tmp_path)
     del data["format_version"]
-    manifest.write_text(json.dumps(data))
-    with pytest.raises(EngineError, match="weights of manifest format 1, and this workbench reads format 2"):
+    manifest.write_text(json.dumps(signed(data)))
+    with pytest.raises(EngineError, match="weights of manifest format 1, and this workbench reads format 3"):
         CAE().load(tmp_path)
     with pytest.raises(ValueError, match="views"):
         CAE.Params(views=5)

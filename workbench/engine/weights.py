@@ -1,9 +1,11 @@
 """Fitted state on disk: ``weights.npz`` (plain arrays, never pickled) plus
 ``manifest.json`` holding its sha256 and whatever the engine needs to rebuild itself
-(parameters, skeleton, training data, metrics, code version and git commit).
+(parameters, skeleton, training data, metrics, code version and git commit), and a
+digest of its own content.
 
 Torch engines store their state_dict as arrays too, so loading never unpickles a file
-a user hands us; a file whose checksum does not match is refused.
+a user hands us; a weights file whose checksum does not match, or a manifest edited
+after it was saved, is refused.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ __all__ = [
     "MANIFEST_FILE",
     "FORMAT_VERSION",
     "sha256_file",
+    "manifest_digest",
+    "signed",
     "code_commit",
     "save_weights",
     "load_weights",
@@ -32,10 +36,12 @@ __all__ = [
 
 WEIGHTS_FILE = "weights.npz"
 MANIFEST_FILE = "manifest.json"
-#: the manifest's layout: 2 records the variant, each parameter under its current name
-#: only, the training's data sets and their terms, and ``test_scores`` (1 had them as
-#: ``validation``)
-FORMAT_VERSION = 2
+#: the manifest's layout: 3 adds ``manifest_sha256``; 2 records the variant, each
+#: parameter under its current name only, the training's data sets and their terms, and
+#: ``test_scores`` (1 had them as ``validation``)
+FORMAT_VERSION = 3
+#: the manifest's entry holding :func:`manifest_digest` of the rest
+DIGEST_KEY = "manifest_sha256"
 
 
 def sha256_file(path: Path) -> str:
@@ -61,6 +67,19 @@ def sha256_file(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def manifest_digest(manifest: Mapping) -> str:
+    """The SHA-256 of a manifest's entries other than :data:`DIGEST_KEY`, as canonical JSON
+    (keys sorted, no spaces): what an edit of any entry changes."""
+    rest = {k: v for k, v in manifest.items() if k != DIGEST_KEY}
+    text = json.dumps(rest, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def signed(manifest: Mapping) -> dict:
+    """``manifest`` with its :data:`DIGEST_KEY` entry set to :func:`manifest_digest`."""
+    return {**manifest, DIGEST_KEY: manifest_digest(manifest)}
 
 
 def code_commit() -> str | None:
@@ -96,7 +115,8 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
     and the entries this function adds, which
     override any of the same name: ``format_version`` (:data:`FORMAT_VERSION`),
     ``file``, ``sha256`` (of the weights file), ``code_version``, ``code_commit``
-    (:func:`code_commit`) and ``saved_utc``.
+    (:func:`code_commit`), ``saved_utc`` and, last, ``manifest_sha256``
+    (:func:`manifest_digest`).
 
     Parameters
     ----------
@@ -136,7 +156,7 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
             "code_commit": code_commit(),
             "saved_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         }
-        text = json.dumps(full, indent=2, sort_keys=True) + "\n"  # a value JSON cannot hold fails here, first
+        text = json.dumps(signed(full), indent=2, sort_keys=True) + "\n"  # a value JSON cannot hold fails here, first
     atomic_write_text(folder / MANIFEST_FILE, text)
     return folder / MANIFEST_FILE
 
@@ -144,8 +164,8 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
 def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     """Read and verify weights saved by :func:`save_weights`.
 
-    The weights file must match the checksum its manifest records, and is read without
-    unpickling anything.
+    The manifest must match its own digest and the weights file the checksum the manifest
+    records; the weights are read without unpickling anything.
 
     Parameters
     ----------
@@ -162,10 +182,11 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     Raises
     ------
     EngineError
-        With a clear message for a missing, corrupt or tampered file: no manifest, an
-        unreadable one, one of another :data:`FORMAT_VERSION`, a weights file named by
-        a path out of the folder, a missing weights file, a checksum that does not match,
-        or unreadable weights.
+        With a message naming the file and what is wrong, for a missing, corrupt or
+        tampered file: no manifest, an unreadable (a truncated) one, one of an older or
+        a newer :data:`FORMAT_VERSION`, one edited after it was saved, a weights file
+        named by a path out of the folder, a missing weights file, a checksum that does
+        not match (a truncated or changed file), or unreadable weights.
     """
     folder = Path(folder)
     manifest_path = folder / MANIFEST_FILE
@@ -177,11 +198,20 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
         raise EngineError(f"{manifest_path}: unreadable weights manifest ({err})") from None
     if not isinstance(manifest, dict) or not isinstance(manifest.get("skeleton_signature"), str):
         raise EngineError(f"{manifest_path}: not a weights manifest (an object with the skeleton it was trained for)")
-    if manifest.get("format_version") != FORMAT_VERSION:
+    version = manifest.get("format_version", 1)
+    if version != FORMAT_VERSION:
+        if isinstance(version, int) and version > FORMAT_VERSION:
+            remedy = "they were saved by a newer workbench: update it to use them"
+        else:
+            remedy = "retrain the engine (`workbench train SPEC --out FOLDER`)"
         raise EngineError(
-            f"{manifest_path}: weights of manifest format {manifest.get('format_version', 1)}, and "
-            f"this workbench reads format {FORMAT_VERSION}; retrain the engine "
-            "(`workbench train SPEC --out FOLDER`)"
+            f"{manifest_path}: weights of manifest format {version}, and this workbench reads format "
+            f"{FORMAT_VERSION}; {remedy}"
+        )
+    if manifest.get(DIGEST_KEY) != manifest_digest(manifest):
+        raise EngineError(
+            f"{manifest_path}: the manifest was changed after it was saved (its {DIGEST_KEY} does not match "
+            "its content); restore it or retrain the engine"
         )
     name = manifest.get("file", WEIGHTS_FILE)
     if not isinstance(name, str) or Path(name).name != name or name in ("", ".", ".."):
