@@ -41,7 +41,7 @@ import numpy as np
 from ..core.motion import Motion
 from ..core.rotations import axis_rotation, matrix_to_euler, nearest_euler
 from ..core.skeleton import Skeleton
-from .errors import MotionFileError
+from .errors import MAX_JOINTS, MotionFileError, read_lines
 
 #: ASF bone names of the CMU skeleton -> joint names of the cgspeed BVH conversion
 #: (same tree and joint order; the hip joints and clavicles are the BVH's fixed
@@ -119,14 +119,6 @@ class AsfModel:
 
 
 # -- helpers --------------------------------------------------------------------------
-def _read_lines(path: Path) -> list[str]:
-    try:
-        text = path.read_bytes().decode("utf-8", errors="replace")
-    except OSError as err:
-        raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
-    return text.splitlines()
-
-
 def _numbers(words: list[str], count: int, what: str, path: Path, line: int) -> np.ndarray:
     if len(words) < count:
         raise MotionFileError(path, f"{what} needs {count} numbers, found {len(words)}", line)
@@ -160,7 +152,7 @@ def _rotation_from(angles_rad: np.ndarray, axes: str) -> np.ndarray:
 
 # -- ASF ------------------------------------------------------------------------------
 def _parse_asf(path: Path) -> AsfModel:
-    lines = _read_lines(path)
+    lines = read_lines(path)
     section = None
     length_scale: float | None = None
     angle_scale = np.pi / 180.0
@@ -367,6 +359,10 @@ def _finish_bone(bone: _Bone, bones: dict[str, _Bone], path: Path) -> None:
         raise MotionFileError(path, f"{where}: 'root' is reserved for the :root section", bone.line)
     if bone.name in bones:
         raise MotionFileError(path, f"bone name {bone.name!r} appears twice", bone.line)
+    if len(bones) + 1 >= MAX_JOINTS:  # the root is a joint too
+        raise MotionFileError(
+            path, f"more than {MAX_JOINTS:,} joints with the root: no capture skeleton has so many", bone.line
+        )
     for key in ("direction", "length", "axis"):
         if getattr(bone, key) is None:
             raise MotionFileError(path, f"bone {bone.name!r} ({where}) has no '{key}'", bone.line)
@@ -415,7 +411,7 @@ def read_amc(path: str | Path, asf_path: str | Path | None = None, *, fps: float
     (default 120, CMU's capture rate) sets it. Raises :class:`MotionFileError`.
     """
     path = Path(path)
-    lines = _read_lines(path)
+    lines = read_lines(path)
     model = _parse_asf(find_asf(path) if asf_path is None else Path(asf_path))
     values, angle_scale = _parse_amc(lines, model, path)
     root, angles = _convert(model, values, angle_scale)

@@ -15,38 +15,50 @@ joint's channels as frame 0's, which the other frames repeat up to printing).
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
 from ..core.motion import Motion
 from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from .atomic import atomic_path
-from .errors import MotionFileError
+from .errors import MAX_JOINTS, MotionFileError, read_lines
 
 
 class _Tokens:
-    """Whitespace tokens of the header with their line numbers."""
+    """The header's whitespace tokens with their line numbers, split off as the parser
+    asks for them (a header of a million tokens costs nothing past its first error);
+    :attr:`motion_line` is the MOTION line's number once the tokens before it are read."""
 
     def __init__(self, lines: list[str], path: str) -> None:
-        self.items: list[tuple[str, int]] = []
         self.path = path
-        self.motion_line = None
+        self.motion_line: int | None = None
+        self._stream = self._split(lines)
+        self._line = 1
+
+    def _split(self, lines: list[str]) -> Iterator[tuple[str, int]]:
         for n, line in enumerate(lines, start=1):
-            words = line.split()
-            if words and words[0].upper() == "MOTION":
+            words = (m.group() for m in _WORD.finditer(line))
+            first = next(words, None)
+            if first is not None and first.upper() == "MOTION":
                 self.motion_line = n
-                break
-            self.items.extend((w, n) for w in words)
-        self.pos = 0
+                return
+            if first is not None:
+                yield first, n
+                yield from ((w, n) for w in words)
 
     def next(self, what: str) -> tuple[str, int]:
-        if self.pos >= len(self.items):
-            line = self.items[-1][1] if self.items else 1
-            raise MotionFileError(self.path, f"file ends inside the HIERARCHY section, expected {what}", line)
-        tok = self.items[self.pos]
-        self.pos += 1
+        tok = next(self._stream, None)
+        if tok is None:
+            raise MotionFileError(self.path, f"file ends inside the HIERARCHY section, expected {what}", self._line)
+        self._line = tok[1]
         return tok
+
+    def left_over(self) -> tuple[str, int] | None:
+        """The next token before the MOTION line, if any."""
+        return next(self._stream, None)
 
     def expect(self, word: str) -> int:
         tok, line = self.next(repr(word))
@@ -60,6 +72,10 @@ class _Tokens:
             return float(tok)
         except ValueError:
             raise MotionFileError(self.path, f"expected a number for {what}, found {tok!r}", line) from None
+
+
+#: a header token
+_WORD = re.compile(r"\S+")
 
 
 def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
@@ -86,6 +102,8 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
     def open_joint(parent: int) -> int:
         """Read a joint's name, brace, OFFSET and CHANNELS; its index."""
         name, line = tokens.next("a joint name")
+        if len(names) >= MAX_JOINTS:
+            raise MotionFileError(path, f"more than {MAX_JOINTS:,} joints: no capture skeleton has so many", line)
         if name in seen:
             raise MotionFileError(path, f"joint name {name!r} appears twice", line)
         seen.add(name)
@@ -97,7 +115,7 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
         if tok != "CHANNELS":
             raise MotionFileError(path, f"expected 'CHANNELS' for joint {name!r}, found {tok!r}", line)
         count = tokens.number("the channel count")
-        if count != int(count) or not 0 <= count <= 6:
+        if not 0 <= count <= 6 or count != int(count):
             raise MotionFileError(path, f"joint {name!r}: channel count must be 0 to 6, got {count}", line)
         chans = []
         for _ in range(int(count)):
@@ -129,9 +147,9 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
             tokens.expect("}")
         else:
             raise MotionFileError(path, f"expected 'JOINT', 'End Site' or '}}', found {tok!r}", line)
-    if tokens.pos < len(tokens.items):
-        tok, line = tokens.items[tokens.pos]
-        raise MotionFileError(path, f"unexpected {tok!r} after the root joint's closing brace", line)
+    extra = tokens.left_over()
+    if extra is not None:
+        raise MotionFileError(path, f"unexpected {extra[0]!r} after the root joint's closing brace", extra[1])
     # The root's position channels are its whole translation: they replace its OFFSET.
     file_offsets = np.array(offsets, float)
     root_offset = np.zeros(3) if any(c in POSITION_CHANNELS for c in channels[0]) else file_offsets[0]
@@ -187,24 +205,35 @@ def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -
         )
     if len(body) > n_frames:
         raise MotionFileError(path, f"'Frames:' says {n_frames} but {len(body)} frame lines follow", first + n_frames)
-    rows = [line.split() for line in body]
-    for n, row in enumerate(rows):
-        if len(row) != D:
-            raise MotionFileError(path, f"frame {n} has {len(row)} values, the hierarchy has {D} channels", first + n)
-    try:
-        values = np.array(rows, dtype=float)
-    except ValueError:
-        for n, row in enumerate(rows):
-            for word in row:
-                try:
-                    float(word)
-                except ValueError:
-                    raise MotionFileError(path, f"frame {n}: {word!r} is not a number", first + n) from None
-        raise
+    values = np.empty((n_frames, D))
+    for n, line in enumerate(body):  # a line at a time: memory of the values, not of their words
+        text = line.strip()
+        try:
+            row = _numbers(text) if text else np.empty(0)  # numpy reads a blank line as [-1.0]
+        except ValueError:
+            bad = next((w for w in text.split() if not _is_number(w)), None)
+            what = f"{bad!r} is not a number" if bad else "values must be separated by spaces or tabs"
+            raise MotionFileError(path, f"frame {n}: {what}", first + n) from None
+        if row.size != D:
+            raise MotionFileError(path, f"frame {n} has {row.size} values, the hierarchy has {D} channels", first + n)
+        values[n] = row
     if np.isinf(values).any():
         n = int(np.argwhere(np.isinf(values))[0, 0])
         raise MotionFileError(path, f"frame {n}: infinite value", first + n)
     return frame_time, values
+
+
+def _numbers(text: str) -> np.ndarray:
+    """The numbers of a frame line (not blank) in C's notation (``nan``, ``inf`` and
+    exponents, as exporters print them): ValueError for anything else."""
+    return np.fromstring(text, sep=" ")
+
+
+def _is_number(word: str) -> bool:
+    try:
+        return _numbers(word).size == 1
+    except ValueError:
+        return False
 
 
 def fps_from_frame_time(frame_time: float) -> float:
@@ -221,11 +250,7 @@ def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
     NaN values are kept (they mark missing data).
     """
     path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8", errors="replace")
-    except OSError as err:
-        raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
-    lines = text.splitlines()
+    lines = read_lines(path)
     tokens = _Tokens(lines, str(path))
     header = _parse_hierarchy(tokens)
     if tokens.motion_line is None:
@@ -306,6 +331,11 @@ def motion_values(motion: Motion) -> np.ndarray:
 DIGITS = 10
 
 
+#: the deepest indentation written (tabs): deeper joints are written at this one, so a
+#: chain of 10,000 joints is 1 MB of text rather than 250
+MAX_INDENT = 64
+
+
 def format_bvh(motion: Motion, digits: int = DIGITS) -> str:
     """The BVH text of a motion (LF line endings, tab indentation), each number to
     ``digits`` significant digits."""
@@ -328,7 +358,7 @@ def format_bvh(motion: Motion, digits: int = DIGITS) -> str:
     stack: list[tuple[int, int, bool]] = [(0, 0, False)]  # joint, depth, closing
     while stack:
         j, depth, closing = stack.pop()
-        ind = "\t" * depth
+        ind = "\t" * min(depth, MAX_INDENT)
         if closing:
             for off in ends.get(j, []):
                 out.write(f"{ind}\tEnd Site\n{ind}\t{{\n{ind}\t\tOFFSET {fmt(off)}\n{ind}\t}}\n")
