@@ -34,18 +34,41 @@ def axis_rotation(axis: int, angle_rad: np.ndarray) -> np.ndarray:
     return R
 
 
+#: rotations converted at a time: each block's temporaries stay in the CPU's cache (on a
+#: 10-minute take, 2.2 million at once ran four times slower)
+BLOCK = 1 << 14
+
+
 def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
     """Euler angles (..., 3) in degrees, in ``order``, to rotation matrices (..., 3, 3)."""
     axes = _check_order(order)
     a = np.deg2rad(np.asarray(angles_deg, dtype=float))
-    R = axis_rotation(axes[0], a[..., 0])
-    for n in (1, 2):  # R @ axis_rotation(axes[n], a[..., n]), which mixes two columns of R
-        c, s = np.cos(a[..., n])[..., None], np.sin(a[..., n])[..., None]
+    flat = a.reshape(-1, 3)
+    out = np.empty((flat.shape[0], 3, 3))
+    for start in range(0, flat.shape[0], BLOCK):
+        out[start : start + BLOCK] = _euler_block(flat[start : start + BLOCK], axes)
+    return out.reshape(a.shape[:-1] + (3, 3))
+
+
+def _euler_block(a: np.ndarray, axes: tuple[int, int, int]) -> np.ndarray:
+    """:func:`euler_to_matrix` of radians (N, 3) about ``axes``."""
+    # The nine entries as arrays of their own (contiguous, unlike a column of (N, 3, 3)):
+    # the first axis's rotation, then R @ axis_rotation(axes[n], a[:, n]) for n = 1, 2,
+    # which mixes two columns of R; written into the matrices once, at the end.
+    c, s = np.cos(a[:, 0]), np.sin(a[:, 0])
+    first, i, j = axes[0], (axes[0] + 1) % 3, (axes[0] + 2) % 3
+    R: list[list] = [[0.0] * 3 for _ in range(3)]
+    R[first][first], R[i][i], R[j][j], R[i][j], R[j][i] = 1.0, c, c, -s, s
+    for n in (1, 2):
+        c, s = np.cos(a[:, n]), np.sin(a[:, n])
         i, j = (axes[n] + 1) % 3, (axes[n] + 2) % 3
-        Ri, Rj = R[..., :, i].copy(), R[..., :, j]  # column j is read before it is written
-        R[..., :, i] = Ri * c + Rj * s
-        R[..., :, j] = Rj * c - Ri * s
-    return R
+        for row in R:
+            row[i], row[j] = row[i] * c + row[j] * s, row[j] * c - row[i] * s
+    out = np.empty((a.shape[0], 3, 3))
+    for r in range(3):
+        for k in range(3):
+            out[:, r, k] = R[r][k]
+    return out
 
 
 def matrix_to_euler(R: np.ndarray, order: str) -> np.ndarray:
