@@ -20,7 +20,16 @@ from PySide6.QtCore import QObject, QRunnable, QThreadPool, QTimer, Signal
 
 from ..data.inspection import Inspection, Interval
 from ..errors import describe
-from .take import DEFAULT_CORRUPTION, EngineRun, Take, inspect_runs, open_take, run_engine, stage_engines
+from .take import (
+    DEFAULT_CORRUPTION,
+    EngineRun,
+    Take,
+    inspect_runs,
+    inspect_take,
+    open_take,
+    run_engine,
+    stage_engines,
+)
 
 TICK_MS = 15
 
@@ -83,6 +92,7 @@ class Session(QObject):
         self._timer.setInterval(TICK_MS)
         self._timer.timeout.connect(self._tick)
         self._clock = (0.0, 0)  # (time, frame) playback started from
+        self._rules: tuple[Take, Inspection] | None = None  # the rules' inspection of a take
         self._inspection: tuple[tuple, Inspection] | None = None  # (what it was made of, it)
         self.running: set[str] = set()  # the specs the worker has begun cleaning with
         self._seconds_per_frame: dict[str, float] = {}  # each spec's last run
@@ -158,6 +168,18 @@ class Session(QObject):
         self.takeChanged.emit()
         self.frameChanged.emit(0)
         self._run(self.specs)
+        generation = self._generation
+        self._submit(
+            "inspecting the take",
+            lambda: inspect_take(take),
+            self._inspected,
+            lambda text: self.message.emit(f"cannot inspect the take: {text}"),
+            lambda: generation == self._generation,
+        )
+
+    def _inspected(self, rules: Inspection) -> None:
+        self._rules = self.take, rules
+        self.runsChanged.emit()  # the suspicious track redraws
 
     # -- engines --------------------------------------------------------------------
     def set_specs(self, specs: list[str], current: str | None = None) -> None:
@@ -301,14 +323,15 @@ class Session(QObject):
 
     # -- suspicious frames ------------------------------------------------------------
     def inspection(self) -> Inspection | None:
-        """The take's suspicious samples: the rules' (made with the take) and the evidence
-        of every checked engine's finished run (rejected samples, disagreement)."""
-        if self.take is None:
+        """The take's suspicious samples: the rules' (made on the worker after the take is
+        shown; None until then) and the evidence of every checked engine's finished run
+        (rejected samples, disagreement)."""
+        if self.take is None or self._rules is None or self._rules[0] is not self.take:
             return None
         runs = [r for s in self.specs if isinstance(r := self.runs.get(s), EngineRun)]
         key = (self.take, tuple(map(id, runs)))
         if self._inspection is None or self._inspection[0] != key:
-            self._inspection = key, inspect_runs(self.take, runs)
+            self._inspection = key, inspect_runs(self.take, self._rules[1], runs)
         return self._inspection[1]
 
     def suspects(self) -> list[Interval]:

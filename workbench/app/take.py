@@ -97,7 +97,6 @@ class Take:
     truth: Motion | None
     noisy: Track
     truth_track: Track | None
-    inspection: Inspection  # the rules' suspicious samples of the noisy take, its gaps as "missing"
 
     @property
     def motion(self) -> Motion:
@@ -166,7 +165,6 @@ def make_take(
         truth,
         noisy,
         truth_track,
-        inspect_motion(noisy.motion, observation.observed),
     )
 
 
@@ -220,11 +218,19 @@ class EngineRun:
         return self.diagnostics.get("raw_positions")
 
 
-def inspect_runs(take: Take, runs: list[EngineRun]) -> Inspection:
-    """The take's inspection with the engines' evidence: the samples the robust ones among
-    ``runs`` rejected, and where two or more of them disagree."""
+def inspect_take(take: Take) -> Inspection:
+    """The rules' suspicious samples of the take as the engines see it (the noisy track,
+    its gaps as "missing"): seconds on a 10-minute take, so the app makes it on its worker
+    once the take is shown."""
+    return inspect_motion(take.noisy.motion, take.observation.observed)
+
+
+def inspect_runs(take: Take, rules: Inspection, runs: list[EngineRun]) -> Inspection:
+    """The take's inspection by the rules (:func:`inspect_take`) with the engines'
+    evidence: the samples the robust ones among ``runs`` rejected, and where two or more
+    of them disagree."""
     J, unit = take.motion.skeleton.n_joints, take.motion.skeleton.unit_cm
-    return take.inspection.with_evidence(
+    return rules.with_evidence(
         take.observation.observed,
         [r.robust_weight for r in runs if r.robust_weight is not None],
         [r.track.points[:, :J] * unit for r in runs],

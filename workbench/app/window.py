@@ -118,7 +118,8 @@ class SuspectTrack(QWidget):
         left = span[0]
         painter.setPen(QColor(TEXT))
         if not self.reasons:
-            painter.drawText(QRectF(0, 0, left - 6, self.height()), Qt.AlignRight | Qt.AlignVCenter, "no suspects")
+            note = "no suspects" if self.session.inspection() is not None else "inspecting…"
+            painter.drawText(QRectF(0, 0, left - 6, self.height()), Qt.AlignRight | Qt.AlignVCenter, note)
         for row, reason in enumerate(self.reasons):
             y = 2 + row * self.ROW_PX
             painter.drawText(QRectF(0, y - 1, left - 6, self.ROW_PX + 2), Qt.AlignRight | Qt.AlignVCenter, reason)

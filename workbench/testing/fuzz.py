@@ -125,8 +125,10 @@ def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
     when every input kept the contract)."""
     import atheris
 
-    from ..io import MotionFileError
-    from ..io import asfamc  # noqa: F401 (loaded before instrument_all, so it is instrumented)
+    from ..io import (
+        MotionFileError,
+        asfamc,  # noqa: F401 (loaded before instrument_all, so it is instrumented)
+    )
 
     seeds = corpus / "seeds"
     if not seeds.is_dir():
