@@ -20,7 +20,7 @@ import time
 import pytest
 from app_helpers import settle
 
-from workbench.app.take import EngineRun
+from workbench.app.take import EngineRun, Take
 from workbench.evaluate import long_take
 from workbench.io import write_bvh
 
@@ -94,6 +94,8 @@ def test_memory_stays_flat_over_playback_and_take_switches(app_window, qtbot, ca
         played += play(qtbot, s, SOAK_MINUTES * 60 / switches)
     gc.collect()
     grown = resident_mb() - before
+    alive = [o for o in gc.get_objects() if isinstance(o, Take)]
+    assert len(alive) <= 2, f"{len(alive)} takes still alive after {switches} switches: the worker's jobs keep them"
     print(
         f"\n{switches} take switches, {played} frames played: resident memory {before:.0f} MB -> {before + grown:.0f}"
     )

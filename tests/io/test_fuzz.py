@@ -95,7 +95,7 @@ def test_a_deep_skeleton_is_written_with_bounded_indentation(tmp_path):
 def test_a_short_fuzzing_pass_keeps_the_contract(reader, tmp_path, data_root):
     """A few thousand inputs from the data root's seeds: libFuzzer exits 0 when none broke
     the contract, and leaves nothing behind but the corpus."""
-    runs = 2000
+    runs = 3000
     done = subprocess.run(
         [sys.executable, "-m", "workbench.testing.fuzz", reader, "--runs", str(runs), "--corpus", str(tmp_path)]
         + ["--data", str(data_root)],

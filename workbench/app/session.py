@@ -116,6 +116,11 @@ class Session(QObject):
 
         def finish(handler, value) -> None:
             del self._jobs[job]
+            # Qt holds the slots, and the slots hold the job and what its function
+            # captured (a take): let go of them, or every take ever opened stays alive
+            signals = [job.signals.done, job.signals.failed] + ([job.signals.started] if started else [])
+            for signal in signals:
+                signal.disconnect()
             self.busyChanged.emit(self._busy_text())
             if wanted():
                 handler(value)
