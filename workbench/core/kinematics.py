@@ -39,6 +39,11 @@ def local_rotations(skeleton: Skeleton, angles_deg: np.ndarray, joints=None) -> 
     return out
 
 
+#: frames whose kinematics are computed together: a 10-minute take's 72,000 at once ran
+#: four times slower, every joint's (F, 3, 3) matrices out of the cache
+FK_BLOCK_FRAMES = 1024
+
+
 def forward_kinematics(
     skeleton: Skeleton,
     root_positions: np.ndarray,
@@ -55,20 +60,24 @@ def forward_kinematics(
         raise ValueError(
             f"the skeleton has {len(skeleton.translated)} translated joints: FK needs their translations (F, T, 3)"
         )
-    R_local = local_rotations(skeleton, np.asarray(angles_deg, float)) if local is None else local
-    F, J = R_local.shape[:2]
-    R = np.empty_like(R_local)
+    angles_deg = np.asarray(angles_deg, float)
+    F, J = angles_deg.shape[:2]
+    R = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))
     offsets = skeleton.offsets
     moving = {j: k for k, j in enumerate(skeleton.translated)}
-    for j, p in enumerate(skeleton.parents):
-        if p < 0:
-            R[:, j] = R_local[:, j]
-            P[:, j] = root_positions + offsets[j]
-        else:
-            R[:, j] = R[:, p] @ R_local[:, j]
-            local_translation = offsets[j] if j not in moving else translations[:, moving[j], :, None]
-            P[:, j] = P[:, p] + (R[:, p] @ local_translation).reshape(F, 3)
+    for f0 in range(0, F, FK_BLOCK_FRAMES):  # a block at a time: its joints' matrices stay in the cache
+        block = slice(f0, f0 + FK_BLOCK_FRAMES)
+        R_local = local_rotations(skeleton, angles_deg[block]) if local is None else local[block]
+        Rb, Pb, n = R[block], P[block], R_local.shape[0]
+        for j, p in enumerate(skeleton.parents):
+            if p < 0:
+                Rb[:, j] = R_local[:, j]
+                Pb[:, j] = root_positions[block] + offsets[j]
+            else:
+                Rb[:, j] = Rb[:, p] @ R_local[:, j]
+                local_translation = offsets[j] if j not in moving else translations[block, moving[j], :, None]
+                Pb[:, j] = Pb[:, p] + (Rb[:, p] @ local_translation).reshape(n, 3)
     return P, R
 
 
