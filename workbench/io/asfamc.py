@@ -41,7 +41,8 @@ import numpy as np
 from ..core.motion import Motion
 from ..core.rotations import axis_rotation, matrix_to_euler, nearest_euler
 from ..core.skeleton import Skeleton
-from .errors import MAX_JOINTS, MotionFileError, read_lines
+from .errors import MotionFileError
+from .limits import MAX_JOINTS, read_lines
 
 #: ASF bone names of the CMU skeleton -> joint names of the cgspeed BVH conversion
 #: (same tree and joint order; the hip joints and clavicles are the BVH's fixed

@@ -24,26 +24,32 @@ import numpy as np
 from ..core.motion import Motion
 from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from .atomic import atomic_path
-from .errors import MAX_JOINTS, MotionFileError, read_lines
+from .errors import MotionFileError
+from .limits import MAX_JOINTS, iter_lines
 
 
 class _Tokens:
     """The header's whitespace tokens with their line numbers, split off as the parser
-    asks for them (a header of a million tokens costs nothing past its first error);
-    :attr:`motion_line` is the MOTION line's number once the tokens before it are read."""
+    asks for them from ``lines``, an iterator (a header of a million tokens costs nothing
+    past its first error). Once the tokens before it are read, :attr:`motion_line` is the
+    MOTION line's number and :attr:`motion_text` its text, and ``lines`` goes on after
+    it; :attr:`lines_read` counts the lines taken."""
 
-    def __init__(self, lines: list[str], path: str) -> None:
+    def __init__(self, lines: Iterator[str], path: str) -> None:
         self.path = path
         self.motion_line: int | None = None
+        self.motion_text = ""
+        self.lines_read = 0
         self._stream = self._split(lines)
         self._line = 1
 
-    def _split(self, lines: list[str]) -> Iterator[tuple[str, int]]:
+    def _split(self, lines: Iterator[str]) -> Iterator[tuple[str, int]]:
         for n, line in enumerate(lines, start=1):
+            self.lines_read = n
             words = (m.group() for m in _WORD.finditer(line))
             first = next(words, None)
             if first is not None and first.upper() == "MOTION":
-                self.motion_line = n
+                self.motion_line, self.motion_text = n, line
                 return
             if first is not None:
                 yield first, n
@@ -164,17 +170,18 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
 
 
 def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -> tuple[float, np.ndarray]:
-    """Parse from the MOTION line (1-based ``start``): returns (frame time s, values (F, D))."""
+    """Parse the file's ``lines`` from its MOTION line, line number ``start`` (1-based), to
+    its end: returns (frame time s, values (F, D))."""
 
     def header(n: int, label: str) -> str:
-        if n > len(lines):
+        if n - start >= len(lines):
             raise MotionFileError(path, f"file ends before the '{label}' line", n - 1)
-        text = lines[n - 1].strip()
+        text = lines[n - start].strip()
         if not text.lower().startswith(label.lower()):
             raise MotionFileError(path, f"expected '{label} ...', found {text[:40]!r}", n)
         return text[len(label) :].strip()
 
-    rest = lines[start - 1].split()[1:]
+    rest = lines[0].split()[1:]
     if rest:
         raise MotionFileError(path, f"unexpected {rest[0]!r} after MOTION", start)
     frames_text = header(start + 1, "Frames:")
@@ -193,7 +200,7 @@ def _parse_motion(lines: list[str], start: int, skeleton: Skeleton, path: str) -
         raise MotionFileError(path, f"'Frame Time:' must be positive, found {ft_text!r}", start + 2)
 
     first = start + 3  # 1-based line number of frame 0
-    body = lines[first - 1 :]
+    body = lines[first - start :]
     while body and not body[-1].strip():
         body.pop()
     D = sum(len(ch) for ch in skeleton.channels)
@@ -250,12 +257,12 @@ def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
     NaN values are kept (they mark missing data).
     """
     path = Path(path)
-    lines = read_lines(path)
+    lines = iter_lines(path)
     tokens = _Tokens(lines, str(path))
     header = _parse_hierarchy(tokens)
     if tokens.motion_line is None:
-        raise MotionFileError(path, "no MOTION section: the file ends after the hierarchy", len(lines))
-    frame_time, values = _parse_motion(lines, tokens.motion_line, header, str(path))
+        raise MotionFileError(path, "no MOTION section: the file ends after the hierarchy", tokens.lines_read)
+    frame_time, values = _parse_motion([tokens.motion_text, *lines], tokens.motion_line, header, str(path))
     motion = _motion_from_values(header, fps_from_frame_time(frame_time), values, name=path.stem)
     return motion if unit_cm is None else motion.replace(skeleton=motion.skeleton.replace(unit_cm=unit_cm))
 

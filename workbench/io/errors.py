@@ -17,38 +17,6 @@ class MotionFileError(ValueError):
         super().__init__(f"{where}: {message}")
 
 
-#: the longest line a motion file may hold (characters): a BVH frame of
-#: :data:`MAX_JOINTS` joints with six channels, each printed to 17 digits, is shorter; a
-#: longer one is a damaged or a hostile file, refused before it is split into words
-MAX_LINE_CHARS = 4 << 20
-#: the most joints (bones) a skeleton may have: studio skeletons with faces and fingers
-#: have a few hundred; a header claiming a million would take minutes and gigabytes
-MAX_JOINTS = 10_000
-
-
-def read_lines(path: str | Path) -> list[str]:
-    """The lines of a motion file (any line ends; bytes that are not UTF-8 replaced).
-
-    Raises :class:`MotionFileError` where the file cannot be read or a line is longer
-    than :data:`MAX_LINE_CHARS`, naming that line.
-    """
-    try:
-        text = Path(path).read_bytes().decode("utf-8", errors="replace")
-    except OSError as err:
-        raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
-    lines = text.splitlines()
-    del text
-    if lines and max(map(len, lines)) > MAX_LINE_CHARS:
-        n = next(n for n, line in enumerate(lines, start=1) if len(line) > MAX_LINE_CHARS)
-        raise MotionFileError(
-            path,
-            f"a line of {len(lines[n - 1]):,} characters, longer than any motion file holds "
-            f"({MAX_LINE_CHARS:,}): the file is damaged or not a motion file",
-            n,
-        )
-    return lines
-
-
 class OutputFileError(OSError):
     """A file cannot be written (a full disk, a read-only folder, no permission): ``str(err)``
     names the file, the system's reason, and that nothing there was lost, since every

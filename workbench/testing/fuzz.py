@@ -24,6 +24,7 @@ The corpus grows in ``runs/fuzz/READER/`` (``--corpus``) and is kept between run
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import tempfile
@@ -121,8 +122,8 @@ def read_input(reader: str, data: bytes, workdir: Path) -> None:
 
 
 def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
-    """Fuzz ``reader`` for ``runs`` inputs (never returns: libFuzzer exits the process, 0
-    when every input kept the contract)."""
+    """Fuzz ``reader`` for ``runs`` inputs (never returns: the process exits with
+    libFuzzer's status, 0 when every input kept the contract)."""
     import atheris
 
     from ..io import (
@@ -160,7 +161,13 @@ def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
         str(seeds),
     ]
     atheris.Setup(argv, one_input)
-    atheris.Fuzz()
+    # libFuzzer's memory limit reads the process's peak resident size, which Linux carries
+    # over an exec from the process that started it (a test run's pytest: a gigabyte); a
+    # child forked here starts from this process's own, so the limit measures the readers
+    child = os.fork()
+    if child == 0:
+        atheris.Fuzz()
+    sys.exit(os.waitstatus_to_exitcode(os.waitpid(child, 0)[1]))
 
 
 def main(argv: list[str] | None = None) -> None:
