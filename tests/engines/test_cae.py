@@ -576,3 +576,18 @@ def test_networks_run_float32_where_bf16_is_emulated(monkeypatch):
     with torch.inference_mode():
         torch.testing.assert_close(asked(x), plain(x), rtol=0, atol=0)
         assert asked.body(x.contiguous(memory_format=torch.channels_last)).dtype == torch.float32
+
+
+def test_a_bfloat16_pass_that_returns_nan_is_redone_in_float32():
+    """oneDNN's bfloat16 convolutions now and then return NaN from a first call: the
+    network's output is then the float32 body's."""
+    from engines.cae.networks import VanillaNet
+
+    torch.manual_seed(0)
+    net = VanillaNet(base=4, top=8, bf16=False).eval()
+    x = torch.randn(1, 2, 32, 32)
+    with torch.inference_mode():
+        expected = net(x)
+        net.bf16 = True
+        net.__dict__["_bf16_body"] = lambda h: net.body(h.float()).to(torch.bfloat16) * float("nan")
+        assert torch.equal(net(x), expected)
