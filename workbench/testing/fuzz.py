@@ -121,6 +121,18 @@ def read_input(reader: str, data: bytes, workdir: Path) -> None:
     read_amc(workdir / "input.amc", workdir / "input.asf")
 
 
+def _instrument(atheris, packages: tuple[str, ...]) -> None:
+    """Give libFuzzer the coverage of every loaded function of ``packages`` (the readers
+    and the skeleton and motion code they build): ``atheris.instrument_all`` would patch
+    all 5,800 loaded functions, 13 of a short pass's 25 s of start-up."""
+    import gc
+    import inspect
+
+    for function in [f for f in gc.get_objects() if inspect.isfunction(f)]:
+        if (function.__module__ or "").startswith(packages):
+            atheris.instrument_func(function)
+
+
 def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
     """Fuzz ``reader`` for ``runs`` inputs (never returns: the process exits with
     libFuzzer's status, 0 when every input kept the contract)."""
@@ -128,7 +140,7 @@ def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
 
     from ..io import (
         MotionFileError,
-        asfamc,  # noqa: F401 (loaded before instrument_all, so it is instrumented)
+        asfamc,  # noqa: F401 (loaded before _instrument, so it is instrumented)
     )
 
     seeds = corpus / "seeds"
@@ -147,7 +159,7 @@ def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
         except MotionFileError:
             pass
 
-    atheris.instrument_all()  # coverage of every loaded Python function: the readers and what they call
+    _instrument(atheris, ("workbench.io", "workbench.core"))
     argv = [
         sys.argv[0],
         f"-runs={runs}",
