@@ -461,6 +461,7 @@ def test_engines_run_shown_first_then_fastest_and_say_whether_queued_or_running(
     s, panel = window.session, window.controls.engines
     queued = []
     monkeypatch.setattr(s, "_submit", lambda what, *args: queued.append(what.removeprefix("cleaning with ")))
+    monkeypatch.setattr(s, "_seconds_per_frame", {})  # no engine's speed measured yet (earlier tests ran some)
     s.set_specs(["mssa", "cae", "kalman", "identity", "test-widths"], "cae")
     # cae is shown; the classical engines have no measured speed yet and go first; identity and
     # test-widths ran on this take already (the fixture)
