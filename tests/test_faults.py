@@ -134,3 +134,13 @@ def test_weights_that_do_not_fit_on_the_disk_leave_the_earlier_weights_loadable(
             save_weights(folder, {"w": np.zeros(20_000)}, {"engine": "demo", "skeleton_signature": "x"})
         assert snapshot(folder) == before and sorted(before) == [MANIFEST_FILE, WEIGHTS_FILE]
         load_weights(folder)
+
+
+def test_a_missing_input_with_an_existing_output_is_one_clear_line(tmp_path, capsys):
+    """The check that -o is not the input must not stat an input that is not there."""
+    (tmp_path / "out.bvh").write_text("an earlier output\n")
+    missing = tmp_path / "missing.bvh"
+    assert main(["clean", str(missing), "-o", str(tmp_path / "out.bvh"), "--engine", "lerp"]) == 2
+    err = capsys.readouterr().err
+    assert f"{missing}: cannot read the file" in err and "Traceback" not in err
+    assert (tmp_path / "out.bvh").read_text() == "an earlier output\n"

@@ -261,7 +261,7 @@ def cmd_clean(args) -> int:
     else:
         output = Path(args.output)
         if not source.is_dir() and (
-            output.resolve() == source.resolve() or output.exists() and output.samefile(source)
+            output.resolve() == source.resolve() or source.exists() and output.exists() and output.samefile(source)
         ):
             raise UserError(
                 f"-o {output} is the input take: cleaning would overwrite the raw take. Name another file, "
