@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -179,7 +180,9 @@ def fuzz(reader: str, runs: int, corpus: Path, data_root: Path) -> None:
     child = os.fork()
     if child == 0:
         atheris.Fuzz()
-    sys.exit(os.waitstatus_to_exitcode(os.waitpid(child, 0)[1]))
+    status = os.waitstatus_to_exitcode(os.waitpid(child, 0)[1])
+    shutil.rmtree(workdir, ignore_errors=True)
+    sys.exit(status)
 
 
 def main(argv: list[str] | None = None) -> None:
