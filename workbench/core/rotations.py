@@ -46,12 +46,12 @@ def euler_to_matrix(angles_deg: np.ndarray, order: str) -> np.ndarray:
     flat = a.reshape(-1, 3)
     out = np.empty((flat.shape[0], 3, 3))
     for start in range(0, flat.shape[0], BLOCK):
-        out[start : start + BLOCK] = _euler_block(flat[start : start + BLOCK], axes)
+        _euler_block(flat[start : start + BLOCK], axes, out[start : start + BLOCK])
     return out.reshape(a.shape[:-1] + (3, 3))
 
 
-def _euler_block(a: np.ndarray, axes: tuple[int, int, int]) -> np.ndarray:
-    """:func:`euler_to_matrix` of radians (N, 3) about ``axes``."""
+def _euler_block(a: np.ndarray, axes: tuple[int, int, int], out: np.ndarray) -> None:
+    """:func:`euler_to_matrix` of radians (N, 3) about ``axes``, written into ``out`` (N, 3, 3)."""
     # The nine entries as arrays of their own (contiguous, unlike a column of (N, 3, 3)):
     # the first axis's rotation, then R @ axis_rotation(axes[n], a[:, n]) for n = 1, 2,
     # which mixes two columns of R; written into the matrices once, at the end.
@@ -64,11 +64,9 @@ def _euler_block(a: np.ndarray, axes: tuple[int, int, int]) -> np.ndarray:
         i, j = (axes[n] + 1) % 3, (axes[n] + 2) % 3
         for row in R:
             row[i], row[j] = row[i] * c + row[j] * s, row[j] * c - row[i] * s
-    out = np.empty((a.shape[0], 3, 3))
     for r in range(3):
         for k in range(3):
             out[:, r, k] = R[r][k]
-    return out
 
 
 def matrix_to_euler(R: np.ndarray, order: str) -> np.ndarray:

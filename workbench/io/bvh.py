@@ -339,7 +339,7 @@ DIGITS = 10
 
 
 #: the deepest indentation written (tabs): deeper joints are written at this one, so a
-#: chain of 10,000 joints is 1 MB of text rather than 250
+#: chain of 10,000 joints is 4 MB of text rather than 250
 MAX_INDENT = 64
 
 
