@@ -114,7 +114,8 @@ class WindowEngine(Engine):
 
     # -- shared work ----------------------------------------------------------------
     def _frame_data(self, observation: Observation) -> FrameData:
-        return frame_data(observation, Layout.of(observation.skeleton), self.norm_, self.WITH_MASK)
+        noise = getattr(self.params, "noise_context", False)
+        return frame_data(observation, Layout.of(observation.skeleton), self.norm_, self.WITH_MASK, noise)
 
     def clean(self, observation: Observation, /) -> CleanResult:
         """Clean the take in the engine's view of it (:meth:`model_view`: body-rooted, at the

@@ -16,6 +16,7 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
 from workbench.engine.signal import bridge_gaps
+from workbench.engine.smoothing import measurement_variance
 
 #: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
 RADIUS = 15
@@ -23,6 +24,8 @@ RADIUS = 15
 VELOCITY_BASELINE = 8
 #: smallest per-feature std used for normalisation (degrees, or degrees per second)
 STD_FLOOR = 1.0
+#: range of :func:`noise_context` (natural log of a noise std in training stds)
+NOISE_CONTEXT_RANGE = (-8.0, 2.0)
 
 
 def root_angular_velocity_dps(
@@ -130,9 +133,21 @@ class FrameData:
         return self.X.shape[0]
 
 
-def frame_data(observation: Observation, layout: Layout, norm: Normaliser, with_mask: bool) -> FrameData:
+def noise_context(values: np.ndarray, observed: np.ndarray, norm: Normaliser) -> np.ndarray:
+    """(C,) the take's own noise level per angle channel: the natural log of its white-noise
+    std (:func:`workbench.engine.smoothing.measurement_variance`, from the observed
+    samples' second differences over the whole take) in training stds of the channel,
+    clipped to :data:`NOISE_CONTEXT_RANGE`. ``values`` (F, C) degrees, ``observed`` (F, C)."""
+    r = measurement_variance(values, observed)
+    return np.clip(np.log(np.sqrt(r) / norm.angle_std), *NOISE_CONTEXT_RANGE)
+
+
+def frame_data(
+    observation: Observation, layout: Layout, norm: Normaliser, with_mask: bool, with_noise: bool = False
+) -> FrameData:
     """Network inputs of an observation: normalised angle channels and root angular
-    velocity, plus (``with_mask``, EBD) the observed mask of the angle channels (0/1)."""
+    velocity, plus (``with_mask``, EBD) the observed mask of the angle channels (0/1),
+    plus (``with_noise``) the take's :func:`noise_context`, the same on every frame."""
     X = bridge_gaps(observation)
     X[:, layout.columns] = anchor_turns(X[:, layout.columns], norm.angle_mean)
     values = X[:, layout.columns]
@@ -140,6 +155,8 @@ def frame_data(observation: Observation, layout: Layout, norm: Normaliser, with_
     parts = [norm(np.concatenate([values, layout.root_velocity(X, observation.motion.fps)], axis=1))]
     if with_mask:
         parts.append((~missing).astype(float))
+    if with_noise:
+        parts.append(np.broadcast_to(noise_context(values, ~missing, norm), missing.shape))
     return FrameData(X, values, np.concatenate(parts, axis=1).astype(np.float32), missing)
 
 

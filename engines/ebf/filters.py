@@ -21,7 +21,13 @@ Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtr
 (our addition) is also trained on joint-position noise solved back to angles (a fourth
 copy of every clip with ``spatial:0.5``, ``spatial:1`` or ``spatial-ends:0.5,0.1``), as
 marker noise reaches a real take's angles: the paper's angular noise is independent
-per channel, position noise is not. Each variant has its own weights folder,
+per channel, position noise is not. ``noise_context=true`` (ours) also gives the network,
+on every frame, the take's own noise std per channel (:func:`.features.noise_context`,
+what the Kalman engine estimates its measurement noise from): a 31-frame window alone
+cannot tell fast motion from noise, a whole take can. It needs the whole take, so it does
+not stream. ``quadratic=true`` (ours) fits a parabola under the predicted Gaussian
+weights instead of taking their mean (:func:`.nets.local_quadratic_weights`): same width,
+no flattened peaks. Each variant has its own weights folder,
 ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
@@ -101,6 +107,14 @@ class FilterEngine(WindowEngine):
     def positions(self) -> bool:
         return getattr(self.params, "positions", False)
 
+    @property
+    def quadratic(self) -> bool:
+        return getattr(self.params, "quadratic", False)
+
+    @property
+    def noise_context(self) -> bool:
+        return getattr(self.params, "noise_context", False)
+
     def _build_net(self, n_channels: int):
         import torch
 
@@ -109,7 +123,7 @@ class FilterEngine(WindowEngine):
         L, C = 2 * RADIUS + 1, n_channels
         n_out = (L if self.free else 1) * C + (C if self.bias else 0)
         net = WindowNet(
-            C + 3,
+            C + 3 + (C if self.noise_context else 0),
             n_out,
             encoder=self.ENCODER,
             recurrent=self.RECURRENT,
@@ -130,7 +144,15 @@ class FilterEngine(WindowEngine):
     def _predict(self, net, windows, values, valid):
         import torch
 
-        from .nets import filter_windows, gaussian_logits, offsets_like, sigma_frames, weights_sigma
+        from .nets import (
+            circular_mean,
+            filter_windows,
+            gaussian_logits,
+            local_quadratic_weights,
+            offsets_like,
+            sigma_frames,
+            weights_sigma,
+        )
 
         B, L, C = values.shape
         z = net(windows).to(values.dtype)
@@ -140,7 +162,10 @@ class FilterEngine(WindowEngine):
             sigma = weights_sigma(weights, offsets)
         else:
             sigma = sigma_frames(z[:, :C])
-            out, _ = filter_windows(gaussian_logits(sigma, offsets), values, valid)
+            if self.quadratic:
+                out = circular_mean(local_quadratic_weights(sigma, offsets, valid), values)
+            else:
+                out, _ = filter_windows(gaussian_logits(sigma, offsets), values, valid)
         diag = {"filter_sigma_frames": sigma}
         if self.bias:
             bias = z[:, -C:] * torch.as_tensor(self.norm_.angle_std, dtype=values.dtype)
@@ -204,11 +229,19 @@ class EBF(FilterEngine):
         free: bool = trained(False)
         #: also trained on joint-position noise (for marker-based takes; our addition)
         positions: bool = trained(False)
+        #: the network also sees the take's own noise level per channel (our addition;
+        #: offline only: it is estimated over the whole take)
+        noise_context: bool = trained(False)
+        #: the predicted Gaussian weights a local quadratic fit instead of a mean (our
+        #: addition: it follows peaks and fast motion that a mean flattens and lags)
+        quadratic: bool = trained(False)
 
         def __post_init__(self) -> None:
             super().__post_init__()
             if self.lstm_units < 1:
                 raise ValueError("lstm_units must be >= 1")
+            if self.free and self.quadratic:
+                raise ValueError("free and quadratic are two filter shapes; choose one")
 
     info = EngineInfo(
         name="ebf",

@@ -17,6 +17,9 @@ HEAD_WIDTHS = (128, 128, 128)
 NN_WIDTHS = (256, 256, 128, 128, 128)
 #: predicted log standard deviations are clamped to this range (0.0025 to 403 frames)
 LOG_SIGMA_RANGE = (-6.0, 6.0)
+#: a local quadratic fit whose moment matrix (offsets in Gaussian stds, weights summing to
+#: 1) has a smaller determinant is ill-posed: its weights fall back to the Gaussian's
+ILL_POSED_DET = 1e-6
 
 
 def mlp(widths: tuple[int, ...], tanh_last: bool) -> nn.Sequential:
@@ -121,10 +124,37 @@ def filter_windows(
     gimbal lock, does not wreck it. The centre frame must be valid."""
     logits = logits.to(values.dtype).masked_fill(~valid[:, :, None], float("-inf"))
     weights = torch.softmax(logits, dim=1)
+    return circular_mean(weights, values), weights
+
+
+def circular_mean(weights: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """(B, C) weighted circular mean of the angles ``values`` (B, L, C) in degrees with
+    ``weights`` (B, L, C) that sum to 1 over the window (some may be negative), on the
+    centre frame's branch."""
     centre = values[:, values.shape[1] // 2]
     deviation = torch.deg2rad(values - centre[:, None])
     mean = torch.atan2((weights * torch.sin(deviation)).sum(dim=1), (weights * torch.cos(deviation)).sum(dim=1))
-    return centre + torch.rad2deg(mean), weights
+    return centre + torch.rad2deg(mean)
+
+
+def local_quadratic_weights(sigma: torch.Tensor, offsets: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """(B, L, C) equivalent kernel of a Gaussian-weighted local quadratic fit: the weights
+    whose sum over a window's values is the value at the centre of the parabola fitted to
+    the window's valid frames by least squares, each frame weighted by a Gaussian of std
+    ``sigma`` (B, C) frames at ``offsets`` (L,) frames. They sum to 1 and reproduce any
+    parabola exactly (a Gaussian's weights flatten peaks and lag fast motion by
+    ``sigma^2`` times the curvature); some are negative. Where the fit is ill-posed (fewer
+    than 3 valid frames with weight, as when ``sigma`` is far below a frame) the weights
+    fall back to the Gaussian's (they are then within a hair of the centre frame alone)."""
+    g = torch.softmax(gaussian_logits(sigma, offsets).masked_fill(~valid[:, :, None], float("-inf")), dim=1)
+    k = offsets[None, :, None] / sigma.clamp(min=0.5)[:, None, :]  # in stds: the same system at every width
+    m = [(g * k**j).sum(dim=1) for j in range(5)]  # (B, C) moments
+    A = torch.stack([torch.stack([m[i + j] for j in range(3)], dim=-1) for i in range(3)], dim=-2)  # (B, C, 3, 3)
+    ok = torch.linalg.det(A) > ILL_POSED_DET
+    eye = torch.eye(3, dtype=A.dtype, device=A.device)
+    a = torch.linalg.solve(torch.where(ok[..., None, None], A, eye), eye[0].expand(*A.shape[:-1]))  # (B, C, 3)
+    quadratic = g * (a[:, None, :, 0] + a[:, None, :, 1] * k + a[:, None, :, 2] * k**2)
+    return torch.where(ok[:, None, :], quadratic, g)
 
 
 def weights_sigma(weights: torch.Tensor, offsets: torch.Tensor) -> torch.Tensor:

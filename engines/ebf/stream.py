@@ -61,6 +61,11 @@ class FilterStream:
         engine.use_weights_for(skeleton)  # the committed weights trained for it, if any
         engine.require_fitted()
         engine.check_skeleton(skeleton)  # frame by frame: no body view, no resampling
+        if getattr(engine.params, "noise_context", False):
+            raise EngineError(
+                f"engine {engine.spec!r} estimates each take's noise over the whole take, so it cannot "
+                "stream; stream with plain 'ebf', or clean the take offline (`workbench clean`)"
+            )
         if abs(fps - engine.fps_) > 1e-6:
             raise EngineError(
                 f"engine {engine.info.name!r} streams takes at the {engine.fps_:g} fps its weights run at, "

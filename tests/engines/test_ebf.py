@@ -10,8 +10,22 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from engines.ebf import BF, EBF, NN  # noqa: E402
-from engines.ebf.features import RADIUS, root_angular_velocity_dps, window_index  # noqa: E402
-from engines.ebf.nets import filter_windows, gaussian_logits, offsets_like  # noqa: E402
+from engines.ebf.features import (  # noqa: E402
+    RADIUS,
+    Layout,
+    Normaliser,
+    frame_data,
+    noise_context,
+    root_angular_velocity_dps,
+    window_index,
+)
+from engines.ebf.nets import (  # noqa: E402
+    circular_mean,
+    filter_windows,
+    gaussian_logits,
+    local_quadratic_weights,
+    offsets_like,
+)
 from engines.ebf.root import NARROW_FRAMES, clean_root  # noqa: E402
 from workbench import metrics, registry  # noqa: E402
 from workbench.core.channels import unwrap_deg  # noqa: E402
@@ -75,6 +89,31 @@ def test_huge_sigma_is_window_circular_mean_and_tiny_sigma_is_identity():
     assert torch.allclose(near, plain, atol=1e-5)
     tiny, _ = filter_windows(gaussian_logits(torch.full((5, 4), 1e-3, dtype=torch.float64), offsets), values, valid)
     assert torch.allclose(tiny, values[:, RADIUS], atol=1e-12)
+
+
+def test_local_quadratic_weights_reproduce_a_parabola_and_sum_to_one():
+    """Any width, whole windows and windows cut by the clip's start or end; a Gaussian
+    mean of the same width misses the parabola's peak by sigma^2 times its curvature."""
+    t = torch.arange(-RADIUS, RADIUS + 1, dtype=torch.float64)[None, :, None]
+    values = (0.3 + 0.004 * t - 0.001 * t**2).expand(4, L, 3).contiguous()  # degrees: small spreads
+    valid = torch.ones(4, L, dtype=torch.bool)
+    valid[1, :RADIUS] = False  # the clip's first frame
+    valid[2, RADIUS + 3 :] = False  # three frames before its last
+    sigma = torch.tensor([[0.7, 3.0, 40.0]], dtype=torch.float64).expand(4, 3)
+    weights = local_quadratic_weights(sigma, offsets_like(values), valid)
+    assert torch.allclose(weights.sum(dim=1), torch.ones(4, 3, dtype=torch.float64))
+    assert (weights[~valid] == 0).all()
+    assert torch.allclose(circular_mean(weights, values), torch.full((4, 3), 0.3, dtype=torch.float64), atol=1e-7)
+    mean, _ = filter_windows(gaussian_logits(sigma, offsets_like(values)), values, valid)
+    assert abs(float(mean[0, 1]) - (0.3 - 0.001 * 3.0**2)) < 1e-4
+
+
+def test_local_quadratic_weights_fall_back_to_the_gaussian_where_a_fit_is_ill_posed():
+    values, valid = _windows()
+    offsets = offsets_like(values)
+    sigma = torch.full((5, 4), 1e-3, dtype=torch.float64)  # one frame carries all the weight
+    gaussian = torch.softmax(gaussian_logits(sigma, offsets), dim=1)
+    assert torch.equal(local_quadratic_weights(sigma, offsets, valid), gaussian)
 
 
 def test_window_index_repeats_edges_and_marks_missing_frames():
@@ -329,6 +368,47 @@ def test_each_variant_has_its_own_weights_folder():
     assert registry.create("bf", pretrained=False).default_weights_dir().name == "bf"
     with pytest.raises(EngineError):
         registry.create("ebf:lstm_units=0")
+
+
+def test_noise_context_is_the_takes_own_noise_std_in_training_stds(walk):
+    """White noise of a known std on every channel: the context recovers it (the walk at
+    120 fps is smooth enough for the second differences), the same on every frame and
+    in the frame data's last C columns; gaps do not change it much."""
+    layout = Layout.of(walk.skeleton)
+    norm = Normaliser.fit([walk], layout)
+    C = layout.n_channels
+    sigma = 0.5 * norm.angle_std
+    noisy = walk.channels.copy()
+    noisy[:, layout.columns] += np.random.default_rng(0).normal(0.0, 1.0, (walk.n_frames, C)) * sigma
+    obs = Observation(walk.with_channels(noisy))
+    values = frame_data(obs, layout, norm, with_mask=False).values
+    context = noise_context(values, np.ones_like(values, bool), norm)
+    assert np.median(np.abs(context - np.log(0.5))) < 0.1 and np.abs(context - np.log(0.5)).max() < 0.25
+    data = frame_data(obs, layout, norm, with_mask=False, with_noise=True)
+    assert data.inputs.shape == (walk.n_frames, 2 * C + 3)
+    assert np.allclose(data.inputs[:, -C:], context[None, :], atol=1e-6)
+    holed = parse_corruption("gaps:0.05").apply(walk.with_channels(noisy), seed=0)
+    with_gaps = frame_data(holed, layout, norm, with_mask=False, with_noise=True).inputs[0, -C:]
+    assert np.median(np.abs(with_gaps - context)) < 0.1
+
+
+def test_quadratic_variant_fits_and_cleans_and_is_not_a_free_filter(tiny):
+    engine = registry.create("ebf:quadratic=true,epochs=1,lstm_units=8,batch_windows=64", pretrained=False)
+    engine.fit(tiny[:1])
+    res = engine.clean(parse_corruption("angular:0.5").apply(tiny[1], seed=0))
+    assert np.isfinite(res.motion.channels).all() and set(res.diagnostics) == {"filter_sigma_frames"}
+    with pytest.raises(EngineError, match="choose one"):
+        registry.create("ebf:quadratic=true,free=true", pretrained=False)
+
+
+def test_noise_context_variant_fits_cleans_and_refuses_to_stream(tiny):
+    engine = registry.create("ebf:noise_context=true,epochs=1,lstm_units=8,batch_windows=64", pretrained=False)
+    engine.fit(tiny[:1])
+    assert engine.variant == "ebf-lstm_units8-noise_context"
+    res = engine.clean(parse_corruption("angular:0.5").apply(tiny[1], seed=0))
+    assert np.isfinite(res.motion.channels).all()
+    with pytest.raises(EngineError, match="cannot stream"):
+        engine.stream(tiny[1].skeleton, tiny[1].fps)
 
 
 def test_positions_variant_also_trains_on_joint_position_noise(tiny):
