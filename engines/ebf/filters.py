@@ -21,14 +21,12 @@ Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtr
 (our addition) is also trained on joint-position noise solved back to angles (a fourth
 copy of every clip with ``spatial:0.5``, ``spatial:1`` or ``spatial-ends:0.5,0.1``), as
 marker noise reaches a real take's angles: the paper's angular noise is independent
-per channel, position noise is not. ``noise_context=true`` (ours) also gives the network,
-on every frame, the take's own noise std per channel (:func:`.features.noise_context`,
-what the Kalman engine estimates its measurement noise from): a 31-frame window alone
-cannot tell fast motion from noise, a whole take can. It needs the whole take, so it does
-not stream. ``quadratic=true`` (ours) fits a parabola under the predicted Gaussian
-weights instead of taking their mean (:func:`.nets.local_quadratic_weights`): same width,
-no flattened peaks. Each variant has its own weights folder,
-``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
+per channel, position noise is not. ``noise_context=true`` (ours) also shows the network
+the take's own noise std per channel (:func:`.features.noise_context`, as kalman estimates
+it): a 31-frame window cannot tell fast motion from noise, a whole take can (so it does not
+stream). ``quadratic=true`` (ours) fits a parabola under the predicted Gaussian weights
+instead of taking their mean (:func:`.nets.local_quadratic_weights`): no flattened peaks.
+Each variant has its own weights folder, ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
 the filter's std in frames (for free filters, the std of the weights over the window;

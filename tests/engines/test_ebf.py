@@ -428,6 +428,16 @@ def test_ablations_have_committed_weights(name, walk):
     assert np.isfinite(res.motion.channels).all()
 
 
+@pytest.mark.parametrize("name", ["ebf:quadratic=true", "ebf:quadratic=true,noise_context=true"])
+def test_studio_variants_have_bandai_weights_only(name, studio_take, walk):
+    engine = registry.create(name)
+    res = engine.clean(parse_corruption("angular:0.5").apply(studio_take.slice(0, 60), seed=0))
+    assert np.isfinite(res.motion.channels).all()
+    assert engine.weights_used_.endswith(f"{engine.variant}/bandai")
+    with pytest.raises(EngineError, match="train"):
+        registry.create(name).clean(parse_corruption("angular:0.5").apply(walk.slice(0, 60), seed=0))
+
+
 def test_a_stream_picks_the_weights_of_its_skeleton_and_runs_at_their_rate(walk, studio_take):
     """A fresh engine starts on one committed set (the first folder by name); a stream of
     CMU takes switches to the CMU weights, and a stream at another rate is refused."""
