@@ -29,14 +29,13 @@ instead of taking their mean (:func:`.nets.local_quadratic_weights`): no flatten
 Each variant has its own weights folder, ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
-the filter's std in frames (for free filters, the std of the weights over the window;
-on the root's position and rotation channels the root filter's), and with ``bias=true``
-``bias`` in degrees (already subtracted; 0 on the root's channels).
+the filter's std in frames (free filters: the std of the weights; quadratic ones: the std
+of the Gaussian under the fit; the root's channels: the root filter's), and with
+``bias=true`` ``bias`` in degrees (already subtracted; 0 on the root's channels).
 
-Training: the train split, every clip every epoch (played at a random speed
-within ±50 %) with fresh angular noise of 0.1, 0.5 and
-0.9 channel stds; loss: the per-frame RMS of the error (L2 norm in degrees) between
-filtered and clean angles, averaged over frames; Adam.
+Training: the train split, every clip every epoch (played at a random speed within ±50 %)
+with fresh angular noise of 0.1, 0.5 and 0.9 channel stds; loss: the per-frame RMS of the
+error (L2 norm in degrees) between filtered and clean angles, averaged over frames; Adam.
 """
 
 from __future__ import annotations
