@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from workbench.io import MotionFileError, read_bvh, write_bvh
-from workbench.io.bvh import format_bvh
+from workbench.io.bvh import _frames_line_by_line, format_bvh, significant
 from workbench.testing.takes import chain_bvh
 
 
@@ -291,6 +291,73 @@ def test_parser_never_crashes_on_mangled_files(walk, tmp_path, data):
         read_bvh(p)
     except MotionFileError:
         pass
+
+
+#: words a frame line may hold, well formed or not
+_FRAME_WORDS = ["0", "-0", "12.5", "-3.25e-07", "1E5", "+.5", "5.", "nan", "NaN", "-nan", "inf", "Infinity"]
+_FRAME_WORDS += ["1e", "x", "0x10", "1_0", '"3"', "1,5", "--1", ".", "1e400", "9" * 30]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_the_compiled_frame_reader_agrees_with_the_line_parser(tmp_path, data):
+    """Property: whatever frame lines follow the hierarchy (the words of every exporter and
+    broken ones, runs of spaces, tabs, a space before the end, CRLF, blank lines), the
+    reader gives exactly the line parser's values, or both refuse them."""
+    n_frames = data.draw(st.integers(1, 4))
+    rows = data.draw(st.lists(st.lists(st.sampled_from(_FRAME_WORDS), min_size=2, max_size=4), min_size=1, max_size=5))
+    gap = data.draw(st.sampled_from([" ", " ", "  ", "\t"]))
+    end = data.draw(st.sampled_from(["\n", "\r\n", " \n", " \r\n", "\n\n"]))
+    body = "".join(gap.join(row) + end for row in rows)
+    p = tmp_path / "frames.bvh"
+    p.write_text(
+        f"HIERARCHY\nROOT a\n{{\nOFFSET 0 0 0\nCHANNELS 3 Xrotation Yrotation Zrotation\n}}\n"
+        f"MOTION\nFrames: {n_frames}\nFrame Time: 0.1\n{body}",
+        newline="",
+    )
+    try:
+        expected = _frames_line_by_line(body.splitlines(), 10, n_frames, 3, str(p))
+        expected = None if np.isinf(expected).any() else expected
+    except MotionFileError:
+        expected = None
+    try:
+        got = read_bvh(p).angles_deg[:, 0]
+    except MotionFileError:
+        got = None
+    if expected is None or got is None:
+        assert expected is None and got is None, (body, expected, got)
+    else:
+        assert np.array_equal(got, expected, equal_nan=True), body
+
+
+@pytest.mark.parametrize(
+    "take", ["bandai/walk/dataset-1_walk_active_001.bvh", "cmu/jog/16_35.bvh", "cmu/jog/02_03.bvh"]
+)
+def test_exporters_frame_lines_take_the_compiled_reader(data_root, take, monkeypatch):
+    """The shared takes' frame lines (Bandai's end in a space, CMU's in CRLF or in LF) are
+    read by the compiled reader, not the line parser."""
+    import workbench.io.bvh as bvh
+
+    def refused(*args):
+        raise AssertionError("the line parser read these frames")
+
+    monkeypatch.setattr(bvh, "_frames_line_by_line", refused)
+    assert read_bvh(data_root / take).n_frames > 0
+
+
+def test_significant_digits_are_printf_s():
+    """significant(x, d) is the double nearest f"{x:.{d}g}" at every magnitude, so a file's
+    numbers of up to DIGITS digits are written back as they were."""
+    rng = np.random.default_rng(0)
+    x = rng.normal(0, 1, 20000) * 10.0 ** rng.integers(-320, 300, 20000)
+    x = np.concatenate([x, [0.0, -0.0, 5e-324, 1e-310, 12345678.125, 0.5, 99999.999995, 1.5]])
+    for digits in (1, 6, 10, 17):
+        expected = np.array([float(f"{v:.{digits}g}") for v in x])
+        got = significant(x.reshape(-1, 8), digits).ravel()
+        assert np.array_equal(np.signbit(got), np.signbit(expected)) and np.array_equal(got, expected), digits
+    decimals = np.array([float(f"{v:.10g}") for v in x])
+    assert np.array_equal(significant(decimals, 10), decimals)
+    assert significant(np.asfortranarray(x.reshape(-1, 8)), 10).flags.f_contiguous
 
 
 def test_write_is_atomic(walk, tmp_path):
