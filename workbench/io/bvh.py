@@ -226,7 +226,8 @@ def _compiled_frames(rest: tuple[bytes, int] | None, n_frames: int, D: int) -> n
     import polars as pl
 
     raw, offset = rest
-    first = raw[offset : raw.find(b"\n", offset)].rstrip(b"\r")
+    end = raw.find(b"\n", offset)
+    first = raw[offset : end if end >= 0 else len(raw)].rstrip(b"\r")
     width = D + first.endswith(b" ")  # the space before the end makes an empty last column
     try:
         frame = pl.read_csv(
@@ -483,19 +484,22 @@ def _frame_lines(values: np.ndarray, digits: int) -> bytes:
 def format_bvh(motion: Motion, digits: int = DIGITS) -> str:
     """The BVH text of a motion (what :func:`write_bvh` writes). Raises ValueError for
     missing (NaN) values."""
-    return _bvh_bytes(motion, digits).decode("utf-8")
+    return b"".join(_bvh_parts(motion, digits)).decode("utf-8")
 
 
-def _bvh_bytes(motion: Motion, digits: int) -> bytes:
+def _bvh_parts(motion: Motion, digits: int) -> tuple[bytes, bytes]:
+    """The BVH file of a motion as its :func:`_hierarchy_text` and its :func:`_frame_lines`
+    (two parts: a long take's frame bytes are not copied to join them)."""
     values = motion_values(motion)
     if not np.isfinite(values).all():
         raise ValueError("the motion has missing (NaN) values: fill its gaps before writing it as BVH")
-    return _hierarchy_text(motion, digits).encode("utf-8") + _frame_lines(values, digits)
+    return _hierarchy_text(motion, digits).encode("utf-8"), _frame_lines(values, digits)
 
 
 def write_bvh(path: str | Path, motion: Motion, digits: int = DIGITS) -> None:
-    """Write ``motion`` as BVH (:func:`_hierarchy_text`, then :func:`_frame_lines`),
-    atomically (no partial file on error). Raises ValueError for missing (NaN) values."""
-    data = _bvh_bytes(motion, digits)
-    with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
+    """Write ``motion`` as BVH, atomically (no partial file on error). Raises ValueError
+    for missing (NaN) values, before any file is made."""
+    parts = _bvh_parts(motion, digits)
+    with atomic_path(path) as tmp, tmp.open("wb") as out:
+        for part in parts:
+            out.write(part)
