@@ -91,6 +91,7 @@ def clean_file(engine, source: Path, output: Path, mask: str | None = None, keep
             "(--keep-reference cleans it with the motion)"
         )
     observation = Observation(motion, observed)
+    del motion  # the observation holds the take: a long take's 50 MB are not kept twice
     t0 = time.perf_counter()
     cleaned = engine.clean(observation).motion
     seconds = time.perf_counter() - t0
@@ -101,7 +102,7 @@ def clean_file(engine, source: Path, output: Path, mask: str | None = None, keep
     return TakeReport(
         source,
         output,
-        motion.n_frames,
+        observation.n_frames,
         seconds,
         int((~observation.observed).sum()),
         engine.spec,

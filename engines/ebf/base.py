@@ -132,7 +132,8 @@ class WindowEngine(Engine):
         angles (N, C) in degrees and diagnostics (N, C), all windows batched."""
         import torch
 
-        preds, diags = [], []
+        preds = np.zeros((centres.size, data.values.shape[1]))
+        diags: dict[str, np.ndarray] = {}  # filled chunk by chunk: no list of chunks to join
         with torch.inference_mode():
             codes = self.net_.encode(torch.from_numpy(data.inputs))
             values = torch.from_numpy(data.values)  # float64: filters in double precision
@@ -140,11 +141,11 @@ class WindowEngine(Engine):
                 idx, valid = window_index(centres[i : i + INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
                 idx_t = torch.from_numpy(idx)
                 pred, diag = self._predict(self.net_, codes[idx_t], values[idx_t], torch.from_numpy(valid))
-                preds.append(pred.double().numpy())
-                diags.append({k: v.double().numpy() for k, v in diag.items()})
-        if not preds:
-            return np.zeros((0, data.values.shape[1])), {}
-        return np.concatenate(preds), {k: np.concatenate([d[k] for d in diags]) for k in diags[0]}
+                done = slice(i, i + len(idx))
+                preds[done] = pred.double().numpy()
+                for key, value in diag.items():
+                    diags.setdefault(key, np.zeros_like(preds))[done] = value.double().numpy()
+        return preds, diags
 
     def fit(self, motions: Sequence[Motion], /) -> "WindowEngine":
         """Train on clean motions of one skeleton (fresh corruption every epoch);

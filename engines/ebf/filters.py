@@ -189,17 +189,19 @@ class FilterEngine(WindowEngine):
         data = self._frame_data(observation)
         pred, diag = self._run(data, np.arange(data.n_frames))
         cols = angle_columns(observation.skeleton)
-        Y = data.X.copy()
+        Y = data.X  # the bridged channels, filtered in place: a long take's arrays are 50 MB each
+        del data
         Y[:, cols] = pred
+        del pred
         diagnostics = {}
-        for key, value in diag.items():
+        for key in list(diag):
             full = np.zeros_like(Y)
-            full[:, cols] = value
+            full[:, cols] = diag.pop(key)
             diagnostics[key] = full
-        if self.params.root_sigma_frames > 0 and data.n_frames:
+        if self.params.root_sigma_frames > 0 and Y.shape[0]:
             skeleton = observation.skeleton
             Y[:, :6], sigma = clean_root(
-                data.X[:, :6], self.params.root_sigma_frames, skeleton.unit_cm, skeleton.rotation_order(0)
+                Y[:, :6], self.params.root_sigma_frames, skeleton.unit_cm, skeleton.rotation_order(0)
             )
             diagnostics["filter_sigma_frames"][:, :6] = np.repeat(sigma, 3, axis=1)
         return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation)), diagnostics)

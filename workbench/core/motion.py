@@ -23,6 +23,11 @@ from .skeleton import Skeleton
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
+    """``a`` as a read-only float array of its own: ``a`` itself where it already is one
+    (another Motion's: motions made from one share what they do not change, a long
+    take's 50 MB channels are not copied for each view of it), else a copy."""
+    if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.base is None and not a.flags.writeable:
+        return a
     a = np.array(a, dtype=float)
     a.setflags(write=False)
     return a
@@ -249,13 +254,16 @@ class Observation:
             raise ValueError(f"observed mask must be (F, J) = {(F, J)}, got {obs.shape}")
         # Missing entries hold NaN, and NaN entries count as missing.
         ch = self.motion.channels
+        nan = np.isnan(ch)
         nan_joint = np.zeros((F, J), bool)
-        np.logical_or.at(nan_joint, (slice(None), channel_joints(self.skeleton)), np.isnan(ch))
+        np.logical_or.at(nan_joint, (slice(None), channel_joints(self.skeleton)), nan)
         obs &= ~nan_joint
-        ch[~channel_mask(obs, self.skeleton)] = np.nan
+        unmarked = ~channel_mask(obs, self.skeleton) & ~nan
         obs.setflags(write=False)
         object.__setattr__(self, "observed", obs)
-        object.__setattr__(self, "motion", self.motion.with_channels(ch))
+        if unmarked.any():  # else the motion is kept as it is: it is read-only
+            ch[unmarked] = np.nan
+            object.__setattr__(self, "motion", self.motion.with_channels(ch))
 
     @property
     def skeleton(self) -> Skeleton:

@@ -160,9 +160,9 @@ def rewrap_angles(Y: np.ndarray, observation: Observation) -> np.ndarray:
     ndarray, shape (F, D)
         A new array equal to ``Y`` modulo 360 that reads like the input.
     """
-    mask, angles = observation.channel_observed, angle_slice(observation.skeleton)
+    mask, angles, motion = observation.channel_observed, angle_slice(observation.skeleton), observation.motion
     out = np.array(Y, dtype=float)
-    out[:, angles] = rewrap_deg(out[:, angles], observation.motion.channels[:, angles], mask[:, angles])
+    out[:, angles] = rewrap_deg(out[:, angles], motion.angles_deg.reshape(motion.n_frames, -1), mask[:, angles])
     return out
 
 

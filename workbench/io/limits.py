@@ -4,6 +4,7 @@ rather than minutes and gigabytes."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
 
@@ -37,12 +38,16 @@ class Lines:
             self.raw = Path(path).read_bytes()
         except OSError as err:
             raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
-        #: lines given out so far
-        self.count = 0
-        self._start = self._end = 0  # the bytes decoded last: raw[start:end]
-        self._chunk = ""  # their text, and how many of its characters are given out
-        self._given = 0
-        self._iter = self._split()
+        self._progress = _Progress()
+        # the generator sees the bytes and the progress, not this object: no reference
+        # cycle, so the file's bytes go as soon as the reader drops it, not at the next
+        # garbage collection (a 68 MB take's bytes lived on through its cleaning)
+        self._iter = _split(self.raw, self._progress, path)
+
+    @property
+    def count(self) -> int:
+        """Lines given out so far."""
+        return self._progress.count
 
     def __iter__(self) -> Iterator[str]:
         return self._iter
@@ -50,32 +55,46 @@ class Lines:
     def __next__(self) -> str:
         return next(self._iter)
 
-    def _split(self) -> Iterator[str]:
-        raw = self.raw
-        while self._end < len(raw):
-            cut = raw.find(b"\n", self._end + _CHUNK_BYTES)  # after a newline: no CRLF or UTF-8 sequence split
-            self._start, self._end = self._end, len(raw) if cut < 0 else cut + 1
-            self._chunk, self._given = raw[self._start : self._end].decode("utf-8", errors="replace"), 0
-            for line, whole in zip(self._chunk.splitlines(), self._chunk.splitlines(keepends=True)):
-                self.count += 1
-                self._given += len(whole)
-                if len(line) > MAX_LINE_CHARS:
-                    raise MotionFileError(
-                        self.path,
-                        f"a line of {len(line):,} characters, longer than any motion file holds "
-                        f"({MAX_LINE_CHARS:,}): the file is damaged or not a motion file",
-                        self.count,
-                    )
-                yield line
-
     def rest(self) -> tuple[bytes, int] | None:
         """The file's bytes and the offset in them where the line after the last one
         given out starts, if that line follows a LF (a compiled CSV parser counts lines
         by LF) and everything before it was UTF-8; None otherwise."""
-        given = self._chunk[: self._given]
+        done = self._progress
+        given = done.chunk[: done.given]
         if not given.endswith("\n") or "\ufffd" in given:  # a replaced byte re-encodes to another length
             return None
-        return self.raw, self._start + len(given.encode("utf-8"))
+        return self.raw, done.start + len(given.encode("utf-8"))
+
+
+@dataclass
+class _Progress:
+    """How far :class:`Lines` has split its file: the lines given out, the bytes decoded
+    last (``raw[start:end]``), their text and how many of its characters are given out."""
+
+    count: int = 0
+    start: int = 0
+    end: int = 0
+    chunk: str = ""
+    given: int = 0
+
+
+def _split(raw: bytes, done: _Progress, path) -> Iterator[str]:
+    """The lines of ``raw`` for :class:`Lines`, recording its progress in ``done``."""
+    while done.end < len(raw):
+        cut = raw.find(b"\n", done.end + _CHUNK_BYTES)  # after a newline: no CRLF or UTF-8 sequence split
+        done.start, done.end = done.end, len(raw) if cut < 0 else cut + 1
+        done.chunk, done.given = raw[done.start : done.end].decode("utf-8", errors="replace"), 0
+        for line, whole in zip(done.chunk.splitlines(), done.chunk.splitlines(keepends=True)):
+            done.count += 1
+            done.given += len(whole)
+            if len(line) > MAX_LINE_CHARS:
+                raise MotionFileError(
+                    path,
+                    f"a line of {len(line):,} characters, longer than any motion file holds "
+                    f"({MAX_LINE_CHARS:,}): the file is damaged or not a motion file",
+                    done.count,
+                )
+            yield line
 
 
 def read_lines(path: str | Path) -> list[str]:
