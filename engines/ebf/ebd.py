@@ -161,7 +161,7 @@ class EBD(WindowEngine):
         """The observation with its missing joint angles synthesised (observed samples
         unchanged); no diagnostics."""
         data = self._frame_data(observation)
-        X = data.X.copy()
+        X = data.X  # the bridged channels, filled in place: a long take's arrays are 50 MB each
         centres = np.flatnonzero(data.missing.any(axis=1))
         if centres.size:
             pred, _ = self._run(data, centres)
@@ -170,6 +170,9 @@ class EBD(WindowEngine):
             share = np.clip(gap_distance(data.missing)[centres] / blend, 0.0, 1.0) if blend > 0 else 1.0
             base = self._bridge(observation, data)[centres]
             X[block] = np.where(data.missing[centres], base + share * (pred - base), X[block])
-        mask = observation.channel_observed
-        out = np.where(mask, observation.motion.channels, rewrap_angles(X, observation))
+            del pred, share, base
+        del data
+        out = rewrap_angles(X, observation)
+        del X
+        np.copyto(out, observation.motion.channels, where=observation.channel_observed)  # observed: as they were
         return CleanResult(observation.motion.with_channels(out))
