@@ -550,10 +550,14 @@ class LongResult:
         return "\n".join(lines)
 
 
+#: how often ``bench --long`` writes and reads the long take, its speeds the best of them
+IO_REPEATS = 3
+
+
 def run_long_benchmark(
     motion: Motion, engine_specs: Sequence[str], corruption: str, seed: int = 0, folder=None
 ) -> LongResult:
-    """Time reading and writing ``motion`` as BVH, corrupt it (``workbench corrupt``'s
+    """Time reading and writing ``motion`` as BVH (the best of :data:`IO_REPEATS`), corrupt it (``workbench corrupt``'s
     files: the BVH and its mask), then clean it with each engine by a ``workbench clean``
     process of its own: its clean alone (as it reports), the whole command, its peak
     resident memory. ``folder``: where the files go (default: a temporary folder)."""
@@ -570,12 +574,14 @@ def run_long_benchmark(
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(folder or tmp)
         clean_path, noisy_path = root / "long.bvh", root / "long-noisy.bvh"
-        t0 = time.perf_counter()
-        write_bvh(clean_path, motion)
-        write_s = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        read_bvh(clean_path)
-        read_s = time.perf_counter() - t0
+        write_s = read_s = np.inf
+        for _ in range(IO_REPEATS):  # the best of a few: the first pays polars' import and first touches
+            t0 = time.perf_counter()
+            write_bvh(clean_path, motion)
+            write_s = min(write_s, time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            read_bvh(clean_path)
+            read_s = min(read_s, time.perf_counter() - t0)
         io = {
             "megabytes": clean_path.stat().st_size / 2**20,
             "read_frames_per_s": motion.n_frames / read_s,

@@ -74,6 +74,21 @@ def test_linear_gap_filling_of_scattered_masks_matches_np_interp():
             np.testing.assert_allclose(out[:, c], expected, atol=1e-12)
 
 
+def test_a_gap_that_ends_one_column_and_one_that_starts_the_next_are_two_gaps():
+    """The missing samples are bridged gap by gap over all columns at once: a gap that
+    runs to the last frame of one column and one from the first frame of the next hold
+    their own column's end values."""
+    X = np.arange(12.0).reshape(4, 3) ** 2
+    observed = np.ones((4, 3), bool)
+    observed[2:, 0] = False  # to the end of column 0
+    observed[:2, 1] = False  # from the start of column 1
+    observed[1:3, 2] = False  # inside column 2
+    out = interpolate_gaps(X, observed)
+    assert out[:, 0].tolist() == [0.0, 9.0, 9.0, 9.0]
+    assert out[:, 1].tolist() == [49.0, 49.0, 49.0, 100.0]
+    np.testing.assert_allclose(out[:, 2], [4.0, 4.0 + (121.0 - 4.0) / 3, 4.0 + 2 * (121.0 - 4.0) / 3, 121.0])
+
+
 def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
     """A channel turning slowly through +-180 degrees; one sample 179.5 degrees off
     (wrapped), with a gap after it. np.unwrap follows the outlier and the rest of the

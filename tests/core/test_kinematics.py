@@ -165,3 +165,21 @@ def test_motion_is_read_only_and_channels_round_trip(walk):
     again = walk.with_channels(walk.channels)
     assert again.allclose(walk, atol=0)
     assert walk.positions.shape == (walk.n_frames, 31, 3)
+
+
+def test_motions_share_read_only_arrays_and_a_writable_one_is_copied(walk):
+    """A Motion made from another's arrays, and an Observation that marks nothing new,
+    share them (a long take is not copied per view); an array someone may still write
+    is copied, so writing it later changes no Motion."""
+    from workbench.core import Observation
+
+    assert Motion(walk.skeleton, walk.fps, walk.root_positions, walk.angles_deg).angles_deg is walk.angles_deg
+    assert Observation(walk).motion is walk
+    angles = walk.angles_deg.copy()
+    own = Motion(walk.skeleton, walk.fps, walk.root_positions, angles)
+    angles[0] = 1e6
+    assert own.angles_deg is not angles and own.allclose(walk, atol=0)
+    observed = np.ones((walk.n_frames, walk.skeleton.n_joints), bool)
+    observed[3, 5] = False
+    gapped = Observation(walk, observed)
+    assert np.isnan(gapped.motion.angles_deg[3, 5]).all() and not np.isnan(walk.angles_deg).any()

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-
 #: frames taken at a time where a whole-take temporary would be (F, D): 4096 frames of
 #: a hundred channels are 3 MB, a long take's whole matrix 50 MB
 _BLOCK_FRAMES = 4096
