@@ -557,10 +557,11 @@ IO_REPEATS = 3
 def run_long_benchmark(
     motion: Motion, engine_specs: Sequence[str], corruption: str, seed: int = 0, folder=None
 ) -> LongResult:
-    """Time reading and writing ``motion`` as BVH (the best of :data:`IO_REPEATS`), corrupt it (``workbench corrupt``'s
-    files: the BVH and its mask), then clean it with each engine by a ``workbench clean``
-    process of its own: its clean alone (as it reports), the whole command, its peak
-    resident memory. ``folder``: where the files go (default: a temporary folder)."""
+    """Time reading and writing ``motion`` as BVH (the best of :data:`IO_REPEATS`),
+    corrupt it (``workbench corrupt``'s files: the BVH and its mask), then clean it with
+    each engine by a ``workbench clean`` process of its own: its clean alone (as it
+    reports), the whole command, its peak resident memory. ``folder``: where the files go
+    (default: a temporary folder)."""
     import os
     import re
     import subprocess
