@@ -43,9 +43,9 @@ class OwnJoints:
         """Image positions (F, J, 3) of the take's world positions (F, J, 3)."""
         return positions
 
-    def heading(self, image_positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-        """(F,) radians: the twist about the up axis of the root's world rotation (F, J, 3, 3)."""
-        return heading(rotations[:, 0])
+    def heading(self, image_positions: np.ndarray, root_rotations: np.ndarray) -> np.ndarray:
+        """(F,) radians: the twist about the up axis of the root's world rotations (F, 3, 3)."""
+        return heading(root_rotations)
 
     def known(self, known: np.ndarray) -> np.ndarray:
         """(F, J) where an image joint's position is known, from where the take joints' are (F, J)."""
@@ -85,7 +85,7 @@ class CanonicalJoints:
         P = self.body.positions(positions)
         return np.where(np.isnan(P), P[:, :1], P)
 
-    def heading(self, image_positions: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    def heading(self, image_positions: np.ndarray, root_rotations: np.ndarray) -> np.ndarray:
         """(F,) radians: the body's facing from its across direction (roots' rest frames
         differ between exporters)."""
         return facing(image_positions)

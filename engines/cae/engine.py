@@ -47,7 +47,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import hole_length, interpolate_gaps
-from workbench.core.kinematics import forward_kinematics, local_rotations, short_lever_joints
+from workbench.core.kinematics import forward_kinematics, joint_positions, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, trained, training
@@ -239,7 +239,7 @@ class ConvAutoencoderEngine(Engine):
                         angles += rng.normal(0.0, p.pose_jitter_deg, jitter.shape) * jitter
                     P, R = forward_kinematics(skeleton, m.root_positions, angles)
                     P = imaging.positions(P)
-                    images.append(encode(layout, P, imaging.heading(P, R)))
+                    images.append(encode(layout, P, imaging.heading(P, R[:, 0])))
                     groups.append(group)
         mirror = mirror_rows(layout, imaging.names) if p.mirror else None
         pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
@@ -388,11 +388,11 @@ class ConvAutoencoderEngine(Engine):
         # smoothed once: the holes' bridges and (with anchor) the IK reference
         smoothed = smooth_and_fill(linear, seen) if self.params.anchor or holes.any() else None
         bridged = np.where(bridge, smoothed, linear) if holes.any() else linear
+        del linear
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
-        ref_local = local_rotations(skeleton, ref)
-        P, R = forward_kinematics(skeleton, bridged[:, :3], ref, local=ref_local)
+        P = joint_positions(skeleton, bridged[:, :3], ref)
         image_positions = imaging.positions(P)
-        theta = imaging.heading(image_positions, R)
+        theta = imaging.heading(image_positions, local_rotations(skeleton, ref, [0])[:, 0])
         ground = image_positions[:, 0] * np.array([1.0, 0.0, 1.0])
         observed = observation.observed | holes
         observed[:, self.constant_] = True
@@ -421,12 +421,11 @@ class ConvAutoencoderEngine(Engine):
             if self.params.anchor and self.params.hole_blend_frames:
                 out = self.blend_short_holes(out, mask)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
-        short, frames, ref, ref_local = self._ik_reference(observation, bridged, smoothed, P, ref, ref_local)
+        short, frames, ref = self._ik_reference(observation, bridged, smoothed, P, ref)
         root, angles, translations = imaging.solve(
             target,
             bridged[:, :3],
             ref,
-            reference_local=ref_local,
             reference_joints=short,
             reference_frames=frames,
         )
@@ -449,7 +448,7 @@ class ConvAutoencoderEngine(Engine):
         holes = missing & (length <= p.short_hole_frames)
         partial = missing & (length <= p.partial_hole_frames) & observation.observed[:, :1] & ~holes
         if partial.any():
-            positions, _ = forward_kinematics(
+            positions = joint_positions(
                 observation.skeleton, channels[:, :3], channels[:, 3:].reshape(observation.n_frames, -1, 3)
             )
             if angles_bridge_holes(observation.skeleton, channels, observation.observed, positions, p.short_lever_cm):
@@ -463,13 +462,12 @@ class ConvAutoencoderEngine(Engine):
         smoothed: np.ndarray | None,
         positions: np.ndarray,
         ref: np.ndarray,
-        ref_local: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What IK keeps of the observation: with ``anchor``
         :func:`workbench.engine.smoothing.ik_reference` (its joints, frames and smoothed reference
-        angles, with their local rotations; ``smoothed``: the channels'
-        :func:`workbench.engine.smoothing.smooth_and_fill`); without it the bridged observation's
-        reference angles and local rotations, and the short levers in every frame."""
+        angles; ``smoothed``: the channels' :func:`workbench.engine.smoothing.smooth_and_fill`);
+        without it the bridged observation's reference angles ``ref``, and the short levers
+        in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
         p = self.params
         if not p.anchor:
@@ -477,12 +475,11 @@ class ConvAutoencoderEngine(Engine):
                 short_lever_joints(skeleton, p.short_lever_cm, observed),
                 np.zeros(observed.shape, bool),
                 ref,
-                ref_local,
             )
         ref, short, frames = ik_reference(
             skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed
         )
-        return short, frames, ref, local_rotations(skeleton, ref)
+        return short, frames, ref
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
         """The network's completion ``out`` (F, H) smoothed over time by a Gaussian of std

@@ -67,18 +67,20 @@ def test_ik_recovers_angles_exactly_with_a_reference(walk, kick):
         assert np.allclose(ang, m.angles_deg, atol=1e-6)
 
 
-def test_precomputed_local_rotations_give_the_same_fk_and_ik(walk):
-    from workbench.core.kinematics import local_rotations
+def test_joint_positions_are_the_positions_of_forward_kinematics_bit_for_bit(walk, kick, studio_take):
+    """Over several blocks of frames (FK_BLOCK_FRAMES), with translated joints too (the studio take's)."""
+    from workbench.core import kinematics
+    from workbench.core.kinematics import joint_positions
 
-    local = local_rotations(walk.skeleton, walk.angles_deg)
-    P, R = forward_kinematics(walk.skeleton, walk.root_positions, walk.angles_deg, local=local)
-    np.testing.assert_array_equal(P, walk.positions)
-    noisy = P + np.random.default_rng(0).normal(0.0, 0.3, P.shape)
-    for a, b in zip(
-        inverse_kinematics(walk.skeleton, noisy, walk.angles_deg, reference_local=local),
-        inverse_kinematics(walk.skeleton, noisy, walk.angles_deg),
-    ):
-        np.testing.assert_array_equal(a, b)
+    assert studio_take.skeleton.translated
+    for m in (walk, kick, studio_take):
+        long = np.resize(m.angles_deg, (kinematics.FK_BLOCK_FRAMES + 7,) + m.angles_deg.shape[1:])
+        root = np.resize(m.root_positions, (len(long), 3))
+        translations = (
+            None if m.translations is None else np.resize(m.translations, (len(long),) + m.translations.shape[1:])
+        )
+        P, _ = forward_kinematics(m.skeleton, root, long, translations)
+        np.testing.assert_array_equal(joint_positions(m.skeleton, root, long, translations), P)
 
 
 def test_reference_joints_keep_the_reference_angles(walk):

@@ -49,27 +49,51 @@ def forward_kinematics(
     root_positions: np.ndarray,
     angles_deg: np.ndarray,
     translations: np.ndarray | None = None,
-    *,
-    local: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """World joint positions (F, J, 3) and world rotations (F, J, 3, 3) from the root
     positions (F, 3), the angles (F, J, 3) and the translations (F, T, 3) of the
     skeleton's translated joints, which take the place of their offsets (needed when it
-    has any). ``local``: the angles' :func:`local_rotations`, when the caller has them."""
+    has any)."""
+    angles_deg = np.asarray(angles_deg, float)
+    R = np.empty(angles_deg.shape + (3,))
+    return _forward(skeleton, root_positions, angles_deg, translations, R), R
+
+
+def joint_positions(
+    skeleton: Skeleton,
+    root_positions: np.ndarray,
+    angles_deg: np.ndarray,
+    translations: np.ndarray | None = None,
+) -> np.ndarray:
+    """The positions (F, J, 3) of :func:`forward_kinematics`, the same bits, without
+    keeping its world rotations: a block of frames' at a time (a 10-minute take's are
+    150 MB)."""
+    return _forward(skeleton, root_positions, np.asarray(angles_deg, float), translations, None)
+
+
+def _forward(
+    skeleton: Skeleton,
+    root_positions: np.ndarray,
+    angles_deg: np.ndarray,
+    translations: np.ndarray | None,
+    R: np.ndarray | None,
+) -> np.ndarray:
+    """FK's positions (F, J, 3); the world rotations into ``R`` (F, J, 3, 3), or into a
+    buffer of one block when it is None."""
     if skeleton.translated and translations is None:
         raise ValueError(
             f"the skeleton has {len(skeleton.translated)} translated joints: FK needs their translations (F, T, 3)"
         )
-    angles_deg = np.asarray(angles_deg, float)
     F, J = angles_deg.shape[:2]
-    R = np.empty((F, J, 3, 3))
     P = np.empty((F, J, 3))
+    scratch = np.empty((min(F, FK_BLOCK_FRAMES), J, 3, 3)) if R is None else None
     offsets = skeleton.offsets
     moving = {j: k for k, j in enumerate(skeleton.translated)}
     for f0 in range(0, F, FK_BLOCK_FRAMES):  # a block at a time: its joints' matrices stay in the cache
         block = slice(f0, f0 + FK_BLOCK_FRAMES)
-        R_local = local_rotations(skeleton, angles_deg[block]) if local is None else local[block]
-        Rb, Pb, n = R[block], P[block], R_local.shape[0]
+        R_local = local_rotations(skeleton, angles_deg[block])
+        Pb, n = P[block], R_local.shape[0]
+        Rb = scratch[:n] if R is None else R[block]
         for j, p in enumerate(skeleton.parents):
             if p < 0:
                 Rb[:, j] = R_local[:, j]
@@ -78,13 +102,13 @@ def forward_kinematics(
                 Rb[:, j] = Rb[:, p] @ R_local[:, j]
                 local_translation = offsets[j] if j not in moving else translations[block, moving[j], :, None]
                 Pb[:, j] = Pb[:, p] + (Rb[:, p] @ local_translation).reshape(n, 3)
-    return P, R
+    return P
 
 
-def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> tuple[list[int], np.ndarray]:
+def _effective_children(skeleton: Skeleton, j: int, reference_local) -> tuple[list[int], np.ndarray]:
     """``skeleton.aimed_descendants[j]`` and their offsets in j's frame, the looked-through
-    joints at their reference local rotations: (n, 3), or (F, n, 3) when a child was
-    looked through (they vary over frames)."""
+    joints at their reference local rotations (``reference_local(v)``: (F, 3, 3)): (n, 3),
+    or (F, n, 3) when a child was looked through (they vary over frames)."""
     aimed = skeleton.aimed_descendants[j]
     ids = [c for c, _ in aimed]
     if not any(via for _, via in aimed):  # the common case: the children's own offsets
@@ -93,7 +117,7 @@ def _effective_children(skeleton: Skeleton, j: int, R_ref_local: np.ndarray) -> 
     for c, via in aimed:
         vec = skeleton.offsets[c]
         for v in reversed(via):
-            vec = (R_ref_local[:, v] @ vec[..., None])[..., 0]
+            vec = (reference_local(v) @ vec[..., None])[..., 0]
         vecs.append(vec)
     return ids, np.stack(np.broadcast_arrays(*vecs), axis=-2)
 
@@ -111,7 +135,6 @@ def inverse_kinematics(
     positions: np.ndarray,
     reference_angles_deg: np.ndarray | None = None,
     *,
-    reference_local: np.ndarray | None = None,
     reference_joints=(),
     reference_frames: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -123,22 +146,28 @@ def inverse_kinematics(
     (F, J, 3), the twist about single-child bones and the rotations of leaf joints come
     from it, and every Euler triple is the representation nearest to it (continuous in
     time); without it they are zero. Exact when ``positions`` come from FK of this
-    skeleton and the reference is the true motion. ``reference_local``: the reference's
-    :func:`local_rotations`, when the caller has them already. ``reference_joints``:
+    skeleton and the reference is the true motion. ``reference_joints``:
     joints that keep the reference's angles instead of being aimed at their children.
     ``reference_frames`` (F, J) bool: the frames in which each joint keeps the
     reference's angles; in its other frames it is aimed, then turned by the reference's
     departure from the aim, bridged across them from the kept frames around
     (:func:`_bridged_departure`), so that it joins the kept frames without a jump.
+
+    Memory: the joints are solved one by one, each joint's rotations (F, 3, 3) kept only
+    until its last child is solved, so a long take needs a few (F, J, 3) arrays, not
+    (F, J, 3, 3) ones.
     """
     positions = np.asarray(positions, float)
     F, J = positions.shape[:2]
     if J != skeleton.n_joints:
         raise ValueError(f"positions have {J} joints, the skeleton {skeleton.n_joints}")
     ref = np.zeros((F, J, 3)) if reference_angles_deg is None else np.asarray(reference_angles_deg, float)
-    R_ref_local = local_rotations(skeleton, ref) if reference_local is None else reference_local
-    R_world = np.empty((F, J, 3, 3))
-    R_local = np.empty((F, J, 3, 3))
+
+    def reference_local(j: int) -> np.ndarray:
+        return local_rotations(skeleton, ref, [j])[:, 0]
+
+    last_child = {p: j for j, p in enumerate(skeleton.parents) if p >= 0}
+    R_world: dict[int, np.ndarray] = {}  # of the joints whose children are still to solve
     P = np.empty((F, J, 3))  # positions actually reached (bone lengths kept)
     kept = np.zeros((F, J), bool) if reference_frames is None else np.array(reference_frames, bool)
     kept[:, list(reference_joints)] = True
@@ -146,20 +175,20 @@ def inverse_kinematics(
     root_positions = positions[:, 0] - skeleton.offsets[0]
     translations = np.empty((F, len(skeleton.translated), 3))
     moving = {j: k for k, j in enumerate(skeleton.translated)}
-    solved = []  # joints aimed at their children; the others keep the reference's angles
+    angles = ref.copy()  # the joints not aimed at children keep the reference's angles
+    orders = skeleton.rotation_orders
     for j, p in enumerate(skeleton.parents):
-        R_parent = None if p < 0 else R_world[:, p]
+        R_parent = None if p < 0 else R_world[p]
         if j in moving:  # a translation, not a bone: it reaches the target
             P[:, j] = positions[:, j]
             translations[:, moving[j]] = np.einsum("fji,fj->fi", R_parent, positions[:, j] - P[:, p])
         else:
             P[:, j] = positions[:, 0] if p < 0 else P[:, p] + np.einsum("fij,j->fi", R_parent, skeleton.offsets[j])
-        R_ref = R_ref_local[:, j]
-        ids, vecs = _effective_children(skeleton, j, R_ref_local) if aimed[j] else ([], None)
+        R_ref = reference_local(j)
+        ids, vecs = _effective_children(skeleton, j, reference_local) if aimed[j] else ([], None)
         if not ids:
-            R_local[:, j] = R_ref
+            R_j = R_ref
         else:  # solved in the parent's frame: the reference is R_ref, the targets turned back
-            solved.append(j)
             targets = positions[:, ids] - P[:, j][:, None]
             if R_parent is not None:
                 targets = np.einsum("fji,fnj->fni", R_parent, targets)
@@ -174,13 +203,11 @@ def inverse_kinematics(
                 R_j = np.where(spread[..., None, None], kabsch(vecs, targets), R_j)
             if kept[:, j].any():
                 R_j = R_j @ _bridged_departure(R_j, R_ref, kept[:, j])
-            R_local[:, j] = R_j
-        R_world[:, j] = R_local[:, j] if R_parent is None else R_parent @ R_local[:, j]
-    angles = ref.copy()
-    orders = skeleton.rotation_orders
-    for order in set(orders[j] for j in solved):
-        idx = [j for j in solved if orders[j] == order]
-        angles[:, idx] = nearest_euler(matrix_to_euler(R_local[:, idx], order), ref[:, idx])
+            angles[:, j] = nearest_euler(matrix_to_euler(R_j, orders[j]), ref[:, j])
+        if j in last_child:  # a parent: its children turn in its world frame
+            R_world[j] = R_j if R_parent is None else R_parent @ R_j
+        if p >= 0 and last_child[p] == j:
+            del R_world[p]
     return root_positions, angles, translations
 
 

@@ -32,7 +32,7 @@ from functools import cached_property
 import numpy as np
 
 from ..core.humanoid import CANONICAL_JOINTS, HumanoidMapping
-from ..core.kinematics import forward_kinematics, inverse_kinematics
+from ..core.kinematics import inverse_kinematics, joint_positions
 
 __all__ = ["CANONICAL_BODY_CM", "CanonicalBody", "facing"]
 
@@ -135,12 +135,9 @@ class CanonicalBody:
         positions (the other joints' targets: :meth:`targets`) are their FK on
         ``root_positions`` (F, 3, file units). ``ik``: further arguments of
         :func:`~workbench.core.kinematics.inverse_kinematics` (``reference_joints`` are
-        added to the kept ones; ``reference_local``, the reference's local rotations,
-        serves the FK too)."""
+        added to the kept ones)."""
         kept = np.union1d(self.kept_joints, np.asarray(ik.pop("reference_joints", ()), int))
-        reference, _ = forward_kinematics(
-            self.skeleton, root_positions, reference_angles_deg, local=ik.get("reference_local")
-        )
+        reference = joint_positions(self.skeleton, root_positions, reference_angles_deg)
         return inverse_kinematics(
             self.skeleton,
             self.targets(canonical, reference),
