@@ -48,7 +48,7 @@ import numpy as np
 
 from workbench.core.channels import hole_length, interpolate_gaps
 from workbench.core.kinematics import forward_kinematics, joint_positions, local_rotations, short_lever_joints
-from workbench.core.motion import Motion, Observation, channel_mask, position_unknown
+from workbench.core.motion import Motion, Observation, channel_mask, channel_matrix, position_unknown
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, trained, training
 from workbench.engine.signal import bridge_gaps, normalized_gaussian, rewrap_angles
@@ -320,36 +320,39 @@ class ConvAutoencoderEngine(Engine):
     ) -> np.ndarray:
         """The network's completion (F, H) of a raw image (F, H) known where ``mask``: the
         mean of the completions of the first ``views`` of :data:`VIEWS`, each mapped back;
-        batched, at most :data:`MAX_CALL_COLUMNS` columns a call. ``mirror``: the row permutation and signs of
-        :func:`.representation.mirror_rows`, needed for the mirrored views."""
+        at most about :data:`MAX_CALL_COLUMNS` columns a network call (``ImageNet.predict``).
+        ``mirror``: the row permutation and signs of :func:`.representation.mirror_rows`,
+        needed for the mirrored views."""
         import torch
 
         from workbench.engine.torch_support import default_threads, torch_threads
 
         from .training import network_input
 
-        F = image.shape[0]
+        F, H = image.shape
         if views > 1 and mirror is None:
             raise ValueError("the mirrored views need the mirror's rows and signs (mirror_rows)")
         perm, sign = mirror if mirror is not None else (None, None)
-        batch = []  # (image, mask, mirrored, reversed) of each view
-        for mirrored, reversed_ in VIEWS[:views]:
-            x, m = (image[:, perm] * sign, mask[:, perm]) if mirrored else (image, mask)
-            batch.append((*(reverse_time(x, m) if reversed_ else (x, m)), mirrored, reversed_))
+        chosen = VIEWS[:views]
         frames = -(-F // self.net_.time_multiple) * self.net_.time_multiple
-        padded = [pad_time(x, m, frames) for x, m, _, _ in batch]
-        X, M = np.stack([x for x, _ in padded]), np.stack([m for _, m in padded])
-        x = network_input((X - self.mean_) / self.std_, M, self.params.input_fill)
-        per_call = max(1, MAX_CALL_COLUMNS // frames)
+        x = torch.empty((len(chosen), 2, H, frames))
+        masks = []  # each view's mask, to map its completion back
+        for b, (mirrored, reversed_) in enumerate(chosen):  # a view at a time: a 10-minute take's is 35 MB
+            v, m = (image[:, perm] * sign, mask[:, perm]) if mirrored else (image, mask)
+            v, m = reverse_time(v, m) if reversed_ else (v, m)
+            masks.append(m)
+            v, m = pad_time(v, m, frames)
+            x[b] = network_input(((v - self.mean_) / self.std_)[None], m[None], self.params.input_fill)[0]
         with torch_threads(default_threads()), torch.inference_mode():
-            Y = np.concatenate([self.net_(x[i : i + per_call]).numpy() for i in range(0, len(x), per_call)])
-        Y = Y[..., :F].transpose(0, 2, 1) * self.std_ + self.mean_
+            Y = self.net_.predict(x, MAX_CALL_COLUMNS)
+        del x
         total = np.zeros_like(image)
-        for y, (_, m, mirrored, reversed_) in zip(Y, batch):
+        for y, m, (mirrored, reversed_) in zip(Y, masks, chosen):
+            y = y[:, :F].T * self.std_ + self.mean_
             if reversed_:
                 y = reverse_time(y, m)[0]
             total += y[:, perm] * sign if mirrored else y
-        return total / len(batch)
+        return total / len(chosen)
 
     @one_blas_thread
     def clean(self, observation: Observation, /, *, constraints: Constraints | None = None) -> CleanResult:
@@ -393,6 +396,9 @@ class ConvAutoencoderEngine(Engine):
         P = joint_positions(skeleton, bridged[:, :3], ref)
         image_positions = imaging.positions(P)
         theta = imaging.heading(image_positions, local_rotations(skeleton, ref, [0])[:, 0])
+        short, frames, ik_angles = self._ik_reference(observation, bridged, smoothed, P, ref)
+        ik_root = bridged[:, :3].copy()
+        del bridged, smoothed, ref  # done with: a long take's are 50 MB each
         ground = image_positions[:, 0] * np.array([1.0, 0.0, 1.0])
         observed = observation.observed | holes
         observed[:, self.constant_] = True
@@ -416,25 +422,25 @@ class ConvAutoencoderEngine(Engine):
             net_out = self.complete(image, mask, mirror, self.params.views)
             out = self.low_pass(net_out)
         raw = decode(layout, net_out, ground, theta)
+        raw_positions = imaging.targets(raw, P)  # the take's joints where the network put them
+        del P, image_positions
         if exact.any() or self.params.anchor:
             out = out + self.correction(image, mask, out, exact)
             if self.params.anchor and self.params.hole_blend_frames:
                 out = self.blend_short_holes(out, mask)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
-        short, frames, ref = self._ik_reference(observation, bridged, smoothed, P, ref)
+        del image, net_out, out
         root, angles, translations = imaging.solve(
-            target,
-            bridged[:, :3],
-            ref,
-            reference_joints=short,
-            reference_frames=frames,
+            target, ik_root, ik_angles, reference_joints=short, reference_frames=frames
         )
-        solved = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations)
-        channels = rewrap_angles(solved.channels, observation)
+        del target, ik_angles
+        channels = channel_matrix(root, angles, translations)
+        del angles
+        rewrap_angles(channels, observation, copy=False)
         if self.params.keep_observed:
             given = observation.channel_observed
             channels[given] = observation.motion.channels[given]
-        return CleanResult(observation.motion.with_channels(channels), {"raw_positions": imaging.targets(raw, P)})
+        return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw_positions})
 
     def bridged_holes(self, observation: Observation, channels: np.ndarray) -> np.ndarray:
         """The holes (F, J) that count as observed, bridged by the constant-velocity
@@ -496,14 +502,16 @@ class ConvAutoencoderEngine(Engine):
         must shed; a clean take's miss passes through), from the mean square of its second
         differences (the module docstring), its smoothing ratio the one that minimises the
         risk on the miss, as the ``kalman`` engine picks it."""
-        miss = np.where(mask, image - out, 0.0)
+        miss = image - out  # in place from here: a long take's (F, H) are 35 MB each
+        miss[~mask] = 0.0
         kept = exact
         if self.params.anchor:
             r = measurement_variance(image, mask, robust=False)
             lam = smoothing_ratio(interpolate_gaps(miss, mask), r, mask.mean(axis=0))
-            miss = np.where(exact, miss, cv_smooth(miss, mask, r / lam, r))
+            np.copyto(miss, cv_smooth(miss, mask, r / lam, r), where=~exact)
             kept = mask
-        return interpolate_gaps(np.where(kept, miss, 0.0), mask)
+        miss[~kept] = 0.0
+        return interpolate_gaps(miss, mask)
 
     def blend_short_holes(self, out: np.ndarray, mask: np.ndarray) -> np.ndarray:
         """``out`` (F, H) with its entries in each hole of L unknown frames of a row (L <

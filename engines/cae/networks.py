@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -60,6 +61,9 @@ class ImageNet(nn.Module):
     time_multiple = 32
     row_multiple = 32
     channels_last = True
+    #: the frames either side of an output frame that it depends on, a multiple of
+    #: ``time_multiple`` (the receptive field's reach; the tests measure it by NaN propagation)
+    time_reach = 160
 
     def __init__(self, body: nn.Module, head: nn.Module, bf16: bool) -> None:
         super().__init__()
@@ -104,6 +108,30 @@ class ImageNet(nn.Module):
                 h = self.body(x)
         return self.head(h.float())[:, 0, :H]
 
+    def predict(self, x: torch.Tensor, max_columns: int) -> np.ndarray:
+        """:meth:`forward` of ``x`` (B, 2, H, T) as float32 (B, H, T), at most about
+        ``max_columns`` image columns (batch x frames) a call: several images a call when
+        they are short; a long image a window of frames at a time, each computed from its
+        frames and :attr:`time_reach` frames either side (windows start at multiples of
+        ``time_multiple``, so the pooling grid is the whole image's): the same values, in
+        memory proportional to the window rather than T (a 10-minute take's first layer is
+        300 MB)."""
+        B, T = x.shape[0], x.shape[-1]
+        step = self.time_multiple
+        window = max(step, (max_columns - 2 * self.time_reach) // step * step)
+        out = np.empty((B, x.shape[2], T), np.float32)
+        if T <= window + 2 * self.time_reach:
+            per_call = max(1, max_columns // T)
+            for b in range(0, B, per_call):
+                out[b : b + per_call] = self(x[b : b + per_call]).numpy()
+            return out
+        for b in range(B):
+            for start in range(0, T, window):
+                end = min(start + window, T)
+                lo, hi = max(0, start - self.time_reach), min(T, end + self.time_reach)
+                out[b, :, start:end] = self(x[b : b + 1, ..., lo:hi])[0, :, start - lo : end - lo].numpy()
+        return out
+
 
 def _conv(c_in: int, c_out: int, stride: int = 1) -> nn.Conv2d:
     return nn.Conv2d(c_in, c_out, 3, stride=stride, padding=1)
@@ -134,6 +162,8 @@ class KaufmannNet(ImageNet):
 
 class VanillaNet(ImageNet):
     """The "Vanilla AE": one strided 3x3 convolution per unit."""
+
+    time_reach = 64
 
     def __init__(self, base: int = 16, top: int = 192, bf16: bool = True) -> None:
         enc = widths(base, top)
@@ -180,6 +210,7 @@ class HoldenNet(ImageNet):
     time_multiple = 2
     row_multiple = 1
     channels_last = False
+    time_reach = 24
 
     def __init__(self, rows: int, hidden: int = 256, kernel: int = 25, bf16: bool = True) -> None:
         super().__init__(_Unpooled(rows, hidden, kernel), _TemporalHead(hidden, rows, kernel), bf16)

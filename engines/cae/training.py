@@ -158,12 +158,11 @@ def network_input(X: np.ndarray, mask: np.ndarray, fill: str) -> torch.Tensor:
     """(B, 2, H, T) float32 network input from normalised images (B, T, H) and masks; the
     unknown entries are 0 (``fill="zero"``, the training mean) or bridged linearly over
     time from the known entries of their row (``"linear"``; 0 in rows never known)."""
-    if fill == "linear":
-        filled = np.stack([interpolate_gaps(x, m) for x, m in zip(X, mask)])
-    else:
-        filled = np.where(mask, X, 0.0)
-    x = np.stack([filled, mask], axis=1).astype(np.float32)
-    return torch.from_numpy(np.ascontiguousarray(x.transpose(0, 1, 3, 2)))
+    out = np.empty((len(X), 2, X.shape[2], X.shape[1]), np.float32)
+    for x, m, o in zip(X, mask, out):  # an image at a time: no float64 copy of the batch
+        o[0] = (interpolate_gaps(x, m) if fill == "linear" else np.where(m, x, 0.0)).T
+        o[1] = m.T
+    return torch.from_numpy(out)
 
 
 def train(

@@ -172,7 +172,7 @@ class EBD(WindowEngine):
             X[block] = np.where(data.missing[centres], base + share * (pred - base), X[block])
             del pred, share, base
         del data
-        out = rewrap_angles(X, observation)
+        out = rewrap_angles(X, observation, copy=False)
         del X
         np.copyto(out, observation.motion.channels, where=observation.channel_observed)  # observed: as they were
         return CleanResult(observation.motion.with_channels(out))

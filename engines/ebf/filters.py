@@ -204,7 +204,7 @@ class FilterEngine(WindowEngine):
                 Y[:, :6], self.params.root_sigma_frames, skeleton.unit_cm, skeleton.rotation_order(0)
             )
             diagnostics["filter_sigma_frames"][:, :6] = np.repeat(sigma, 3, axis=1)
-        return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation)), diagnostics)
+        return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation, copy=False)), diagnostics)
 
     def stream(self, skeleton, fps: float):
         """A :class:`~engines.ebf.stream.FilterStream` for takes of ``skeleton`` at

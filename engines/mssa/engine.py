@@ -13,7 +13,7 @@ import numpy as np
 
 from workbench.core.channels import rewrap_deg, unwrap_deg
 from workbench.core.kinematics import inverse_kinematics
-from workbench.core.motion import Motion, Observation, angle_columns
+from workbench.core.motion import Motion, Observation, angle_columns, channel_matrix
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, trained
 from workbench.engine.canonical import CanonicalBody
@@ -341,8 +341,8 @@ class MSSA(Engine):
                     canonical, root_track[:, :3], reference, reference_joints=short, reference_frames=frames
                 )
                 weight = _take_weights(body, weight, observation.observed)
-            out = observation.motion.replace(root_positions=root, angles_deg=angles, translations=translations).channels
-        out[:, 3:] = rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:])  # the input's angle branch
+            out = channel_matrix(root, angles, translations)
+        rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:], copy=False)  # the input's angle branch
         motion = observation.motion.with_channels(out)
         return CleanResult(motion, diagnostics | {"robust_weight": weight})
 

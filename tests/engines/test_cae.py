@@ -591,3 +591,40 @@ def test_a_bfloat16_pass_that_returns_nan_is_redone_in_float32():
         net.bf16 = True
         net.__dict__["_bf16_body"] = lambda h: net.body(h.float()).to(torch.bfloat16) * float("nan")
         assert torch.equal(net(x), expected)
+
+
+def _networks():
+    from engines.cae.networks import HoldenNet, KaufmannNet, VanillaNet
+
+    torch.manual_seed(0)
+    return [KaufmannNet(base=4, top=8, bf16=False), VanillaNet(base=4, top=8, bf16=False), HoldenNet(rows=6, hidden=8)]
+
+
+@pytest.mark.parametrize("index", range(3), ids=["cae", "cae-vanilla", "holden"])
+def test_time_reach_is_the_farthest_frame_an_output_depends_on(index):
+    """Measured by NaN propagation from one frame, at every phase of the pooling grid:
+    ``time_reach`` covers it, rounded up to ``time_multiple`` and no further."""
+    net = _networks()[index].eval()
+    T, reach = 1024, 0
+    for t0 in range(T // 2, T // 2 + net.time_multiple):
+        x = torch.randn(1, 2, 6, T)
+        x[..., t0] = float("nan")
+        with torch.inference_mode():
+            hit = torch.isnan(net(x)).any(dim=(0, 1)).nonzero()[:, 0]
+        reach = max(reach, t0 - int(hit.min()), int(hit.max()) - t0)
+    assert net.time_reach % net.time_multiple == 0
+    assert reach <= net.time_reach < reach + net.time_multiple
+
+
+@pytest.mark.parametrize("index", range(3), ids=["cae", "cae-vanilla", "holden"])
+def test_a_long_image_predicted_a_window_at_a_time_gives_the_whole_image_s_values(index):
+    """Windows of frames, each with its reach either side, on a 3-view image longer than
+    several windows: the values of one call on the whole image (to float32 rounding)."""
+    net = _networks()[index].eval()
+    x = torch.randn(3, 2, 6, 64 * 41)
+    x[:, 1] = (x[:, 1] > 0).float()
+    with torch.inference_mode():
+        whole = net.predict(x, max_columns=10**9)
+        windowed = net.predict(x, max_columns=2 * net.time_reach + 320)
+    assert windowed.shape == whole.shape == (3, 6, 64 * 41)
+    np.testing.assert_allclose(windowed, whole, rtol=0, atol=1e-5)

@@ -151,7 +151,7 @@ def _same_mask_groups(observed: np.ndarray, cols: np.ndarray) -> list[np.ndarray
     return [cols[inverse == g] for g in range(inverse.max() + 1)]
 
 
-def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray) -> np.ndarray:
+def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray, *, copy: bool = True) -> np.ndarray:
     """Put unwrapped angle columns ``Y`` (F, D) back on the branch of ``reference``.
 
     ``reference`` holds the original (wrapped) angles at the ``observed`` samples; each
@@ -160,9 +160,11 @@ def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray) -> np
     observed sample before them (of the first one, before the first observation). The
     result equals ``Y`` modulo 360 everywhere; where ``Y`` is the unwrapped reference,
     it is the reference again. Columns with no observation are returned unchanged.
+    ``copy=False``: ``Y`` (a writable float array, a view included) is shifted in place
+    and returned, sparing a long take's (F, D) copy.
     """
     Y, reference = np.asarray(Y, float), np.asarray(reference, float)
-    out = Y.copy()
+    out = Y.copy() if copy else Y
     observed = np.asarray(observed, bool)
     off_branch = np.zeros(Y.shape[1], bool)
     with np.errstate(invalid="ignore"):

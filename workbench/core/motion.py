@@ -112,10 +112,7 @@ class Motion:
     def channels(self) -> np.ndarray:
         """(F, 3 + 3J + 3T) root position, every joint's Euler angles, then the
         translations (a copy)."""
-        F = self.n_frames
-        return np.concatenate(
-            [self.root_positions, self.angles_deg.reshape(F, -1), self.translations.reshape(F, -1)], axis=1
-        )
+        return channel_matrix(self.root_positions, self.angles_deg, self.translations)
 
     def with_channels(self, channels: np.ndarray) -> "Motion":
         """A Motion with the same skeleton and fps from a (F', 3 + 3J + 3T) channel matrix."""
@@ -166,6 +163,14 @@ class Motion:
             and np.allclose(self.translations, other.translations, atol=atol, equal_nan=True)
             and np.all((np.abs(dang) <= atol) | (np.isnan(self.angles_deg) & np.isnan(other.angles_deg)))
         )
+
+
+def channel_matrix(root_positions: np.ndarray, angles_deg: np.ndarray, translations: np.ndarray) -> np.ndarray:
+    """The (F, 3 + 3J + 3T) channel matrix (a new array) of root positions (F, 3), Euler
+    angles (F, J, 3) and translations (F, T, 3): :attr:`Motion.channels` without making
+    a Motion (which would copy a writable array first)."""
+    F = len(root_positions)
+    return np.concatenate([root_positions, np.reshape(angles_deg, (F, -1)), np.reshape(translations, (F, -1))], axis=1)
 
 
 def channel_count(skeleton: Skeleton) -> int:

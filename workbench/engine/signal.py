@@ -145,7 +145,7 @@ def bridge_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
     return p.bridged.copy() if p.bridged is p.raw else p.bridged
 
 
-def rewrap_angles(Y: np.ndarray, observation: Observation) -> np.ndarray:
+def rewrap_angles(Y: np.ndarray, observation: Observation, *, copy: bool = True) -> np.ndarray:
     """Shift the angle channels of ``Y`` by whole turns onto the observation's branch.
 
     Parameters
@@ -154,15 +154,19 @@ def rewrap_angles(Y: np.ndarray, observation: Observation) -> np.ndarray:
         A channel matrix of unwrapped angles, e.g. a filtered :func:`bridge_gaps`.
     observation : Observation
         The input whose angle branch the output follows.
+    copy : bool
+        False: shift ``Y`` (a writable float64 array) in place and return it, sparing a
+        long take's (F, D) copy.
 
     Returns
     -------
     ndarray, shape (F, D)
-        A new array equal to ``Y`` modulo 360 that reads like the input.
+        An array equal to ``Y`` modulo 360 that reads like the input (a new one unless
+        ``copy=False``).
     """
     mask, angles, motion = observation.channel_observed, angle_slice(observation.skeleton), observation.motion
-    out = np.array(Y, dtype=float)
-    out[:, angles] = rewrap_deg(out[:, angles], motion.angles_deg.reshape(motion.n_frames, -1), mask[:, angles])
+    out = np.array(Y, dtype=float, copy=copy)
+    rewrap_deg(out[:, angles], motion.angles_deg.reshape(motion.n_frames, -1), mask[:, angles], copy=False)
     return out
 
 

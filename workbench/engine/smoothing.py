@@ -189,15 +189,28 @@ def second_difference_band(F: int) -> np.ndarray:
     return band
 
 
+#: unknowns per banded solve (32 bytes each with the band): a long take's columns a few at
+#: a time, the same values as one solve of all of them (their systems do not couple)
+BANDED_UNKNOWNS = 1 << 20
+
+
 def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky."""
+    """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky,
+    as many columns a solve as :data:`BANDED_UNKNOWNS` allows."""
     F, D = Y.shape
-    ir = 1.0 / r
-    ab = second_difference_band(F)[:, None, :] * (1.0 / q)[None, :, None]  # (3, D, F)
-    ab[0] += observed.T * ir[:, None]
-    b = np.where(observed, Y, 0.0).T * ir[:, None]  # (D, F)
-    x = solveh_banded(ab.reshape(3, -1), b.reshape(-1), lower=True, check_finite=False)
-    return x.reshape(D, F).T
+    out = np.empty((F, D))
+    band, per_solve = second_difference_band(F), max(1, BANDED_UNKNOWNS // max(F, 1))
+    for c in range(0, D, per_solve):
+        cols = slice(c, c + per_solve)
+        ir = 1.0 / r[cols]
+        ab = band[:, None, :] * (1.0 / q[cols])[None, :, None]  # (3, n, F)
+        ab[0] += observed[:, cols].T * ir[:, None]
+        b = np.where(observed[:, cols], Y[:, cols], 0.0).T * ir[:, None]  # (n, F)
+        x = solveh_banded(
+            ab.reshape(3, -1), b.reshape(-1), overwrite_ab=True, overwrite_b=True, lower=True, check_finite=False
+        )
+        out[:, cols] = x.reshape(-1, F).T
+    return out
 
 
 def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = True) -> np.ndarray:

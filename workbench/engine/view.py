@@ -234,7 +234,7 @@ class ModelView:
         motion = result.motion.replace(fps=fps_take).with_channels(_resample_frames(_unwrapped(result.motion), t))
         if source.skeleton.body_root:
             motion = from_body(motion, self.bridged)
-        X = rewrap_angles(motion.channels, source)
+        X = rewrap_angles(motion.channels, source, copy=False)
         if keep_observed:
             mask = source.channel_observed
             X[mask] = source.motion.channels[mask]
