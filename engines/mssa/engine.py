@@ -269,7 +269,7 @@ class MSSA(Engine):
     def _clean(self, observation: Observation) -> CleanResult:
         skeleton = observation.skeleton
         model = self.models_[self.params.space]
-        raw, mask = observation.motion.channels, observation.channel_observed
+        mask = observation.channel_observed
         X = bridge_gaps(observation)
         F = X.shape[0]
         body = self._body(skeleton)
@@ -286,6 +286,7 @@ class MSSA(Engine):
         seen = observed[:, cols].any(axis=0)
         centre = np.where(seen, np.median(sub, axis=0), model.mean)
         u = np.where(seen, (sub - centre) / model.scale, 0.0)
+        del sub
         p = self.params
         seen_at = observed[:, cols]
         sigma2 = measurement_variance(u, seen_at)
@@ -342,6 +343,7 @@ class MSSA(Engine):
                 )
                 weight = _take_weights(body, weight, observation.observed)
             out = channel_matrix(root, angles, translations)
+        raw = observation.motion.channels  # (a copy: made only now, not held through the filter)
         rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:], copy=False)  # the input's angle branch
         motion = observation.motion.with_channels(out)
         return CleanResult(motion, diagnostics | {"robust_weight": weight})

@@ -87,18 +87,24 @@ class WindowProjector:
         self.tail = tail.reshape((M - 1) * L, (M - 1) * L).astype(np.float32)
 
     def __call__(self, z: np.ndarray) -> tuple[np.ndarray, float]:
+        """a (F, L) of z (F, L) (:meth:`added`) and the prior energy."""
+        added = self.added(z)
+        prior = float(np.sum(coverage(len(z), self.window)[:, None] * np.square(z)) - np.sum(z * added))
+        return added, max(prior, 0.0)
+
+    def added(self, z: np.ndarray) -> np.ndarray:
+        """a (F, L) of z (F, L): each frame's reconstructions summed over its windows."""
         M = self.window
         F, L = z.shape
-        padded = np.pad(z, ((M - 1, M - 1), (0, 0)))
+        padded = np.pad(z.astype(np.float32), ((M - 1, M - 1), (0, 0)))
         lags = sliding_window_view(padded, 2 * M - 1, axis=0).transpose(0, 2, 1)  # (F, 2M-1, L)
         added = np.empty((F, L))
         for f0 in range(0, F, CHUNK_FRAMES):
-            block = lags[f0 : f0 + CHUNK_FRAMES]
-            added[f0 : f0 + len(block)] = block.astype(np.float32).reshape(len(block), -1) @ self.taps
+            block = lags[f0 : f0 + CHUNK_FRAMES]  # one C-order copy (an astype kept the strides: two)
+            added[f0 : f0 + len(block)] = np.ascontiguousarray(block).reshape(len(block), -1) @ self.taps
         added[: M - 1] -= (self.head @ z[: M - 1].astype(np.float32).ravel()).reshape(M - 1, L)
         added[F - M + 1 :] -= (self.tail @ z[F - M + 1 :].astype(np.float32).ravel()).reshape(M - 1, L)
-        prior = float(np.sum(coverage(F, M)[:, None] * np.square(z)) - np.sum(z * added))
-        return added, max(prior, 0.0)
+        return added
 
 
 @dataclass(frozen=True)
@@ -220,29 +226,41 @@ def _cg_filter(
     g0 = np.diag(projector.taps.reshape(2 * M - 1, L, L)[M - 1]) / M  # diagonal of A / n
     costs: list[float] = []
     iterations = 0
-    added, prior = projector(z)
-    costs.append(data_cost(z) + lam * prior)
-    band = second_difference_band(y.shape[0])[:, None, :] * (2.0 * mu)[None, :, None] if mu.any() else None
+    costs.append(data_cost(z) + lam * projector(z)[1])
+    smoothed = mu.any()  # the smoothness term: a banded preconditioner
 
+    # The (F, L) arrays below (40 MB each on a 10-minute take) are updated in place where
+    # that keeps the memory order the plain expression's result would have: numpy sums an
+    # array in its memory order, so the order decides the last bits (these are the same).
     def solve(z, w, lam):
         """Minimise the quadratic with data weights ``w`` and bases weight ``lam``: PCG
         from ``z`` to a relative residual of ``CG_TOL`` (at most ``CG_STEPS`` steps)."""
         diagonal = w + 2.0 * lam * n * (1.0 - g0) + 1e-12
-        if band is None:
+        if not smoothed:
 
             def precond(v):
                 return v / diagonal
         else:  # exact for the data and smoothness terms: banded Cholesky of every channel
-            ab = band.copy()
+            ab = second_difference_band(len(y))[:, None, :] * (2.0 * mu)[None, :, None]  # (3, L, F)
             ab[0] += diagonal.T
-            factor = cholesky_banded(ab.reshape(3, -1), lower=True, check_finite=False)
+            factor = cholesky_banded(ab.reshape(3, -1), overwrite_ab=True, lower=True, check_finite=False)
+            del ab
 
             def precond(v):
                 x = cho_solve_banded((factor, True), v.T.reshape(-1), check_finite=False)
                 return x.reshape(v.shape[1], v.shape[0]).T
 
-        def apply(v):
-            return w * v + 2.0 * lam * (n * v - projector(v)[0]) + 2.0 * mu * second_difference_gram(v)
+        def apply(v):  # w v + 2 lam (n v - a(v)) + 2 mu D2'D2 v, in that expression's memory order
+            out = w * v  # (the order of its first term: the sums below depend on it)
+            bases = n * v
+            bases -= projector.added(v)
+            bases *= 2.0 * lam
+            out += bases
+            del bases
+            smooth = second_difference_gram(v)
+            smooth *= 2.0 * mu
+            out += smooth
+            return out
 
         r = w * y - apply(z)
         d = precond(r)
@@ -253,22 +271,25 @@ def _cg_filter(
                 break
             q = apply(d)
             step = rz / float(np.sum(d * q))
-            z = z + step * d
-            r = r - step * q
+            z = z + step * d  # not in place: its memory order follows the terms' (and then w's)
+            q *= step
+            r -= q
+            del q
             s_ = precond(r)
             rz, rz_old = float(np.sum(r * s_)), rz
-            d = s_ + (rz / rz_old) * d
+            d *= rz / rz_old
+            d += s_
+            del s_
         return z
 
     while iterations < max_iterations:
         z = solve(z, weights(z), lam)
         iterations += 1
-        added, prior = projector(z)
-        costs.append(data_cost(z) + lam * prior)
+        costs.append(data_cost(z) + lam * projector(z)[1])
         if not robust or abs(costs[-2] - costs[-1]) <= tol * costs[-2]:
             break
     if refit_weight > 0:
         z = solve(z, weights(z), refit_weight)
-        added, _ = projector(z)
+    added = projector.added(z)  # once, at the end: not held through the solves
     trust = (alpha > 0) * (np.exp(-np.square(z - y) / p2) if robust else 1.0)
     return FilterResult(z[:F], (added / n)[:F], trust[:F], costs, iterations)

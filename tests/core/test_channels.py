@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, retime, unwrap_deg
+from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, retime, rewrap_deg, unwrap_deg
 
 
 def test_retime_plays_faster_and_slower_by_linear_interpolation():
@@ -106,3 +106,22 @@ def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
     assert np.all(np.isnan(robust[~observed]))
     clean = (truth + 180.0) % 360.0 - 180.0  # without the outlier: as np.unwrap
     assert np.array_equal(unwrap_deg(clean, robust=True), np.unwrap(clean, period=360.0, axis=0))
+
+
+def test_rewrap_puts_unwrapped_angles_back_on_the_reference_s_branch_in_place_or_not():
+    """Each column follows its observed reference's turn, a missing sample its last
+    observed one's; ``copy=False`` shifts a view of a larger array in place, the same."""
+    rng = np.random.default_rng(0)
+    reference = rng.uniform(-180.0, 180.0, (50, 4))
+    turns = rng.integers(-2, 3, (1, 4)) * 360.0
+    Y = reference - turns + rng.normal(0.0, 1.0, reference.shape)
+    observed = rng.random(reference.shape) > 0.2
+    observed[0] = True
+    expected = Y + turns
+    copied = rewrap_deg(Y, reference, observed)
+    np.testing.assert_allclose(copied, expected)
+    channels = np.concatenate([np.zeros((50, 3)), Y], axis=1)
+    view = channels[:, 3:]
+    assert rewrap_deg(view, reference, observed, copy=False) is view
+    np.testing.assert_array_equal(channels[:, 3:], copied)
+    assert not np.array_equal(Y, copied)  # the default leaves its input as it was
