@@ -603,8 +603,8 @@ def _measure_fps(args, specs) -> int:
     import shutil
     import subprocess
 
+    from .app.defaults import DEFAULT_CLIP, DEFAULT_CORRUPTION
     from .app.main import WINDOW_SIZE, has_display, measure_playback, open_window
-    from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION
 
     if not has_display() and shutil.which("xvfb-run"):  # a real (virtual) display, as a user has
         return subprocess.call(
@@ -838,7 +838,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.set_defaults(func=cmd_train)
 
-    from .app.take import DEFAULT_CLIP, DEFAULT_CORRUPTION, DEFAULT_ENGINES
+    from .app.defaults import DEFAULT_CLIP, DEFAULT_CORRUPTION, DEFAULT_ENGINES
 
     def take_opts(sp):
         sp.add_argument(

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 from workbench import cli
-from workbench.app.take import DEFAULT_CLIP
+from workbench.app.defaults import DEFAULT_CLIP
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

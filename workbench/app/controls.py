@@ -34,7 +34,8 @@ from PySide6.QtWidgets import (
 
 from .. import registry
 from ..engine import INFERENCE, WEIGHTS_OPTION, param_roles
-from .take import DEFAULT_CORRUPTION, EngineRun
+from .defaults import DEFAULT_CORRUPTION
+from .take import EngineRun
 
 SPEC_ROLE = Qt.UserRole
 MAX_MESSAGES = 100

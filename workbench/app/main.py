@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .take import DEFAULT_CLIP, DEFAULT_CORRUPTION, EngineRun, default_engines, loadable
+from .defaults import DEFAULT_CLIP, DEFAULT_CORRUPTION
+from .take import EngineRun, default_engines, loadable
 
 WINDOW_SIZE = (1200, 800)
 #: the outliers screenshot: a robust engine on a take with outliers

@@ -20,10 +20,7 @@ from ..data.inspection import Inspection, inspect_motion
 from ..io import MOTION_SUFFIXES, read_motion
 from ..metrics import body_joints, joint_position_error_cm
 from ..render.scene import skeleton_points
-
-DEFAULT_CLIP = "cmu/walk/35_31"
-DEFAULT_CORRUPTION = "angular:0.5+gaps:0.01"
-DEFAULT_ENGINES = ("ebd>ebf", "cae", "mssa", "lerp>gaussian", "kalman")
+from .defaults import DEFAULT_CORRUPTION, DEFAULT_ENGINES
 
 
 def stage_engines(spec: str) -> list:
