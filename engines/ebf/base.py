@@ -144,7 +144,9 @@ class WindowEngine(Engine):
                 done = slice(i, i + len(idx))
                 preds[done] = pred.double().numpy()
                 for key, value in diag.items():
-                    diags.setdefault(key, np.zeros_like(preds))[done] = value.double().numpy()
+                    if key not in diags:  # (setdefault's default was a whole-take array made every chunk)
+                        diags[key] = np.zeros_like(preds)
+                    diags[key][done] = value.double().numpy()
         return preds, diags
 
     def fit(self, motions: Sequence[Motion], /) -> "WindowEngine":
