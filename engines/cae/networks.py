@@ -114,9 +114,10 @@ class ImageNet(nn.Module):
         ``max_columns`` image columns (batch x frames) a call: several images a call when
         they are short; a long image a window of frames at a time, each computed from its
         frames and :attr:`time_reach` frames either side (windows start at multiples of
-        ``time_multiple``, so the pooling grid is the whole image's): the same values, in
-        memory proportional to the window rather than T (a 10-minute take's first layer is
-        300 MB)."""
+        ``time_multiple``, so the pooling grid is the whole image's): the values of one
+        call on the whole image, to float32 rounding (bit for bit for ``cae``'s network on
+        these CPUs; ``holden``'s convolutions round by batch and width), in memory
+        proportional to the window rather than T (a 10-minute take's first layer is 300 MB)."""
         B, T = x.shape[0], x.shape[-1]
         step = self.time_multiple
         window = max(step, (max_columns - 2 * self.time_reach) // step * step)
