@@ -470,6 +470,22 @@ def test_cv_smoother_equals_rts_recursion():
         np.testing.assert_allclose(ours[:, d], ref, atol=1e-5 * np.abs(ref).max())
 
 
+def test_the_banded_smoother_solves_a_few_columns_at_a_time_with_the_same_bits(monkeypatch):
+    """A long take's gappy columns are solved BANDED_UNKNOWNS at a time: any split of
+    them gives the one solve's values exactly (their systems do not couple)."""
+    from workbench.engine import smoothing
+
+    rng = np.random.default_rng(3)
+    F, D = 200, 7
+    Y = np.cumsum(rng.normal(size=(F, D)), 0)
+    obs = rng.random((F, D)) > 0.1
+    q, r = rng.uniform(0.01, 1.0, D), rng.uniform(0.1, 2.0, D)
+    whole = smoothing.cv_smooth(Y, obs, q, r)
+    for unknowns in (1, 2 * F, 3 * F + 5):  # one column a solve (at least), two, three
+        monkeypatch.setattr(smoothing, "BANDED_UNKNOWNS", unknowns)
+        np.testing.assert_array_equal(smoothing.cv_smooth(Y, obs, q, r), whole)
+
+
 def test_coupled_smoother_equals_rts_recursion():
     from engines.kalman.coupled import coupled_smooth
 
