@@ -436,9 +436,8 @@ class ConvAutoencoderEngine(Engine):
             target, ik_root, ik_angles, reference_joints=short, reference_frames=frames
         )
         del target, ik_angles
-        channels = channel_matrix(root, angles, translations)
+        channels = rewrap_angles(channel_matrix(root, angles, translations), observation, copy=False)
         del angles
-        rewrap_angles(channels, observation, copy=False)
         if self.params.keep_observed:
             given = observation.channel_observed
             channels[given] = observation.motion.channels[given]

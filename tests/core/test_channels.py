@@ -125,3 +125,5 @@ def test_rewrap_puts_unwrapped_angles_back_on_the_reference_s_branch_in_place_or
     assert rewrap_deg(view, reference, observed, copy=False) is view
     np.testing.assert_array_equal(channels[:, 3:], copied)
     assert not np.array_equal(Y, copied)  # the default leaves its input as it was
+    with pytest.raises(ValueError, match="float64"):  # a converted copy would be shifted, silently
+        rewrap_deg(Y.astype(np.float32), reference, observed, copy=False)

@@ -76,9 +76,7 @@ def test_joint_positions_are_the_positions_of_forward_kinematics_bit_for_bit(wal
     for m in (walk, kick, studio_take):
         long = np.resize(m.angles_deg, (kinematics.FK_BLOCK_FRAMES + 7,) + m.angles_deg.shape[1:])
         root = np.resize(m.root_positions, (len(long), 3))
-        translations = (
-            None if m.translations is None else np.resize(m.translations, (len(long),) + m.translations.shape[1:])
-        )
+        translations = np.resize(m.translations, (len(long),) + m.translations.shape[1:])
         P, _ = forward_kinematics(m.skeleton, root, long, translations)
         np.testing.assert_array_equal(joint_positions(m.skeleton, root, long, translations), P)
 

@@ -160,9 +160,12 @@ def rewrap_deg(Y: np.ndarray, reference: np.ndarray, observed: np.ndarray, *, co
     observed sample before them (of the first one, before the first observation). The
     result equals ``Y`` modulo 360 everywhere; where ``Y`` is the unwrapped reference,
     it is the reference again. Columns with no observation are returned unchanged.
-    ``copy=False``: ``Y`` (a writable float array, a view included) is shifted in place
-    and returned, sparing a long take's (F, D) copy.
+    ``copy=False``: ``Y`` (a writable float64 array, a view included) is shifted in place
+    and returned, sparing a long take's (F, D) copy; any other ``Y`` raises ValueError
+    (a converted copy would be shifted instead, silently).
     """
+    if not copy and not (isinstance(Y, np.ndarray) and Y.dtype == np.float64):
+        raise ValueError("rewrap_deg(copy=False) shifts a float64 array in place; this Y would be converted first")
     Y, reference = np.asarray(Y, float), np.asarray(reference, float)
     out = Y.copy() if copy else Y
     observed = np.asarray(observed, bool)
