@@ -33,3 +33,27 @@ def test_reproducible_training_seeds_and_restores_the_settings():
             draws.append(torch.rand(3))
         assert (torch.get_num_threads(), torch.are_deterministic_algorithms_enabled()) == before
     assert torch.equal(*draws)
+
+
+FIRST_CALL = """
+import torch
+import workbench.engine.torch_support  # settles VML when imported
+torch.set_num_threads(2)
+g = torch.Generator().manual_seed(0)
+with torch.inference_mode():
+    h = torch.nn.Linear(256, 256)(torch.rand(14400, 256, generator=g))  # the threads just busy
+    first, second = torch.tanh(h), torch.tanh(h)
+print(torch.equal(first, second))
+"""
+
+
+@pytest.mark.parametrize("process", range(3))
+def test_the_first_threaded_vml_call_of_a_process_gives_the_usual_bits(process):
+    """Without :func:`settle_vml` the first call of a process computed one thread's half
+    with other code in about one process in five (ebf's encoder: a take's second half of
+    frames came out different); three fresh processes catch that most of the time."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", FIRST_CALL], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["True"]
