@@ -12,7 +12,7 @@ import pytest
 
 from engines.mssa import MSSA
 from engines.mssa.bases import window_blocks
-from engines.mssa.solver import WindowProjector, robust_filter
+from engines.mssa.solver import WindowProjector, robust_filter, second_difference_gram
 from workbench import registry
 from workbench.core import Observation
 from workbench.core.motion import angle_columns, channel_mask, joint_angle_columns
@@ -66,7 +66,7 @@ def test_projector_matches_the_window_by_window_projection(fitted):
     model = fitted.models_["angles"]
     E, M = model.bases.astype(float), 20
     rng = np.random.default_rng(0)
-    for F in (20, 33, 90, 1100):  # 1100: three blocks of the product (CHUNK_FRAMES)
+    for F in (20, 33, 90, 219, 4000):  # 219: two FFT blocks; 4000: two batches of them (FFT_BATCH)
         z = np.cumsum(rng.normal(size=(F, model.columns.size)), axis=0) * 0.2
         added, prior = WindowProjector(E, M)(z)
         ref, ref_prior = np.zeros_like(z), 0.0
@@ -78,6 +78,8 @@ def test_projector_matches_the_window_by_window_projection(fitted):
                 ref[s0 + s : s0 + s + M] += R[s].T
         assert np.allclose(added, ref, atol=1e-5 * np.abs(ref).max()), F
         assert np.isclose(prior, ref_prior, rtol=1e-4), F
+        channel_major = WindowProjector(E, M).added(np.asfortranarray(z))  # the solver's layout
+        assert channel_major.flags.f_contiguous and np.array_equal(channel_major, added), F
 
 
 def _outlier_case(motion, engine, rate=0.05, seed=1):
@@ -352,3 +354,12 @@ def test_committed_universal_bases_clean_the_unseen_skeleton_in_position_space_o
     assert positions.weights_used_.startswith("universal weights ") and "mssa-universal" in positions.weights_used_
     with pytest.raises(EngineError, match="no weights for this skeleton"):
         registry.create("mssa").clean(obs)
+
+
+@pytest.mark.parametrize("frames", [2, 3, 4, 5, 50])
+def test_second_difference_gram_is_d2_transposed_d2(frames):
+    v = np.asfortranarray(np.random.default_rng(frames).normal(size=(frames, 3)))
+    D2 = np.diff(np.eye(frames), 2, axis=0)  # (F - 2, F)
+    got = second_difference_gram(v)
+    np.testing.assert_allclose(got, D2.T @ D2 @ v, atol=1e-12)
+    assert got.flags.f_contiguous  # the solver's channel-major layout is kept
