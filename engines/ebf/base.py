@@ -20,10 +20,12 @@ from workbench.engine import CleanResult, Engine, training
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
 #: windows evaluated per forward pass at inference. Small passes keep the LSTM's
-#: activations near the cache: on a 39-s take (4,723 frames) ebf cleans at 7.0-8.9k
-#: frames/s with 512 against 4.4-5.2k with 4096, bit-identical (2-core AVX2 EPYC); 256
-#: changes the output in the last bits
-INFERENCE_CHUNK = 512
+#: activations and the filter's (B, 31, C) float64 arrays near the cache: on a 39-s take
+#: (4,723 frames) ebf cleans at 7.0-8.9k frames/s with 512 against 4.4-5.2k with 4096,
+#: bit-identical (2-core AVX2 EPYC; 256 changed the output in the last bits there); on
+#: the 10-minute take 9.2-9.6 s with 128 against 9.7-11.7 s with 512, bit-identical for
+#: ebf and ebd>ebf (2-core Xeon with AMX)
+INFERENCE_CHUNK = 128
 
 
 @dataclass(frozen=True)
