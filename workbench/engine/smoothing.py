@@ -248,13 +248,19 @@ def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = Tru
         n = ok.sum(axis=1)
         mean_square = np.where(ok, d2 * d2, 0.0).sum(axis=1) / np.maximum(n, 1)
         return np.maximum(mean_square / 6.0, R_FLOOR)
+    # each channel's differences contiguous, partitioned in place: a median along the
+    # frames of the (F, D) layout reads memory D numbers apart (the same medians, 3x slower)
+    d2 = np.ascontiguousarray(d2)
     if ok.all():
-        med = np.median(d2, axis=1)
+        med = np.median(d2, axis=1, overwrite_input=True)
     else:
         # second differences touching a missing sample are replaced alternately by -1 and
         # +inf: the median then stays that of the valid ones (to within one rank)
-        parity = np.cumsum(~ok, axis=1) % 2
-        med = np.median(np.where(ok, d2, np.where(parity == 1, np.inf, -1.0)), axis=1)
+        missing = np.ascontiguousarray(~ok)
+        odd = np.cumsum(missing, axis=1) % 2 == 1
+        d2[missing & odd] = np.inf
+        d2[missing & ~odd] = -1.0
+        med = np.median(d2, axis=1, overwrite_input=True)
         med = np.where(ok.any(axis=1) & np.isfinite(med), np.maximum(med, 0.0), 0.0)
     return np.maximum((_MAD_TO_STD * med) ** 2 / 6.0, R_FLOOR)
 
