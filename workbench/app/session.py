@@ -292,20 +292,12 @@ class Session(QObject):
             return False
         self.set_playing(False)
         runs = self.shown_runs()
-        written = []
-
-        def tell(done: int, total: int) -> bool:
-            going = progress is None or progress(done, total) is not False
-            if done == total and going:
-                written.append(True)
-            return going
-
         try:
-            write_video(path, self.take, runs, tell)
+            written = write_video(path, self.take, runs, progress)
         except (OSError, ValueError, RuntimeError) as err:
             self.message.emit(f"cannot write {path}: {describe(err)}")
             return False
-        if not written:
+        if written is None:
             self.message.emit(f"video cancelled: {path} not written")
             return False
         self.message.emit(f"wrote the video of {', '.join(r.spec for r in runs) or 'the take'} to {path}")

@@ -43,11 +43,11 @@ def write_video(
     take: Take,
     runs: list[EngineRun],
     progress: Callable[[int, int], bool] | None = None,
-) -> Path:
+) -> Path | None:
     """Render ``take`` and ``runs`` frame by frame and write ``path`` (.mp4) atomically;
-    ``progress(done, total)`` is called after each frame and cancels the video (no file,
-    returns the path unwritten) when it returns False. Raises ValueError for another
-    suffix, RuntimeError when ffmpeg fails."""
+    returns ``path``. ``progress(done, total)`` is called after each frame and cancels the
+    video when it returns False: no file is written and None is returned. Raises
+    ValueError for another suffix, RuntimeError when ffmpeg fails."""
     import imageio_ffmpeg
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -99,7 +99,7 @@ def write_video(
                     raise _Cancelled
             writer.close()
     except _Cancelled:
-        pass
+        return None
     finally:
         plotter.close()
     return path
