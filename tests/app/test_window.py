@@ -446,6 +446,10 @@ def test_export_video_writes_the_shown_playback(window, qtbot, tmp_path, monkeyp
     assert f"wrote the video of identity to {out}" in window.controls.log.item(0).text()
     assert not window.session.export_video(str(tmp_path / "walk.gif"))
     assert "cannot write" in window.controls.log.item(0).text() and not (tmp_path / "walk.gif").exists()
+    cancelled = tmp_path / "cancelled.mp4"
+    assert not window.session.export_video(str(cancelled), progress=lambda done, total: done < 3)
+    assert f"video cancelled: {cancelled} not written" in window.controls.log.item(0).text()
+    assert not cancelled.exists()
 
 
 def test_measure_playback_counts_the_frames_shown(window):
