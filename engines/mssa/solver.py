@@ -252,8 +252,8 @@ def _cg_filter(
 ):
     """``robust_filter`` with ``method="cg"`` (see there); ``data_cost`` includes the
     smoothness term of weights ``mu`` (L,)."""
-    M, L = projector.window, y.shape[1]
-    g0 = np.diag(projector.taps.reshape(2 * M - 1, L, L)[M - 1]) / M  # diagonal of A / n
+    M = projector.window
+    g0 = np.diag(projector.taps[M - 1]) / M  # diagonal of A / n
     costs: list[float] = []
     iterations = 0
     costs.append(data_cost(z) + lam * projector(z)[1])
