@@ -30,7 +30,8 @@ INFERENCE_CHUNK = 128
 
 @dataclass(frozen=True)
 class TrainingParams:
-    """Training parameters common to the four engines (they do not change the network)."""
+    """Parameters common to the four engines: how they train (which does not change the
+    network's shape), and ``bf16``."""
 
     #: passes over the training data; each pass draws fresh noise on every clip
     epochs: int = training(20)
@@ -46,6 +47,10 @@ class TrainingParams:
     #: between 1 / (1 + p/100) and 1 + p/100 (our train subjects move more slowly,
     #: relative to the noise, than the test subjects; see the issue note)
     time_scale_pct: float = training(50.0)
+    #: run the B-LSTM in bfloat16 where the CPU does so natively (AMX or AVX512-BF16:
+    #: :func:`~workbench.engine.torch_support.bf16_is_native`), about 3x faster; float32
+    #: elsewhere, and in training
+    bf16: bool = True
 
     def __post_init__(self) -> None:
         if self.epochs < 1 or self.batch_windows < 1 or not self.learning_rate > 0 or self.seed < 0:
@@ -96,8 +101,17 @@ class WindowEngine(Engine):
         self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float))
         net = self._build_net(self.norm_.mean.size - 3)
         load_module_arrays(net, arrays, "net.")
-        self.net_ = net.eval()
+        self._use_net(net)
         self.loss_history_ = np.asarray(arrays.get("loss_history", []), float)
+
+    def _use_net(self, net) -> None:
+        """Make the trained or loaded ``net`` the engine's network, in eval mode; its
+        B-LSTM in bf16 where ``bf16`` asks for it and the CPU runs bf16 natively."""
+        from workbench.engine.torch_support import bf16_is_native
+
+        self.net_ = net.eval()
+        if self.params.bf16 and bf16_is_native():
+            net.run_core_in_bf16()
 
     # -- subclass hooks -------------------------------------------------------------
     def _build_net(self, n_channels: int):
@@ -195,7 +209,7 @@ class WindowEngine(Engine):
                 desc=self.variant,
             )
         )
-        self.net_ = net.eval()
+        self._use_net(net)
 
     def retimed(self, motion: Motion, rng: np.random.Generator) -> Motion:
         """``motion`` played at a random speed (the ``time_scale_pct`` augmentation)."""

@@ -6,6 +6,8 @@ channels. Angles in degrees, filter widths in frames.
 
 from __future__ import annotations
 
+import copy
+
 import torch
 from torch import nn
 
@@ -86,12 +88,25 @@ class WindowNet(nn.Module):
             last.weight.mul_(0.1)
             last.bias.zero_()
 
+        self.__dict__["bf16_core"] = None  # not a registered submodule: never saved
+
+    def run_core_in_bf16(self) -> None:
+        """Evaluate the B-LSTM core on a bfloat16 copy of it from now on, in eval mode
+        (training still runs the float32 weights; the NN's core has no weights and stays
+        as it is). The head reads the core's output back in float32, so the filters it
+        predicts carry the bf16 rounding of the LSTM's state only. Call it when the
+        weights are final: the copy is made here, once."""
+        if isinstance(self.core, WindowLSTM):
+            self.__dict__["bf16_core"] = copy.deepcopy(self.core).to(torch.bfloat16)
+
     def encode(self, frames: torch.Tensor) -> torch.Tensor:
         """(..., n_in) normalised frame features -> (..., E) codes."""
         return self.encoder(frames)
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
         """(B, L, E) windows of codes -> (B, n_out)."""
+        if self.bf16_core is not None and not self.training:
+            return self.head(self.bf16_core(windows.to(torch.bfloat16)).float())
         return self.head(self.core(windows))
 
 
