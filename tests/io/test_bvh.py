@@ -355,9 +355,16 @@ def test_significant_digits_are_printf_s():
         expected = np.array([float(f"{v:.{digits}g}") for v in x])
         got = significant(x.reshape(-1, 8), digits).ravel()
         assert np.array_equal(np.signbit(got), np.signbit(expected)) and np.array_equal(got, expected), digits
+        in_place = np.asfortranarray(x.reshape(-1, 8))
+        assert significant(in_place, digits, out=in_place) is in_place
+        assert np.array_equal(in_place.ravel(), expected) and np.array_equal(
+            np.signbit(in_place.ravel()), np.signbit(expected)
+        )
     decimals = np.array([float(f"{v:.10g}") for v in x])
     assert np.array_equal(significant(decimals, 10), decimals)
     assert significant(np.asfortranarray(x.reshape(-1, 8)), 10).flags.f_contiguous
+    with pytest.raises(ValueError, match="strides"):
+        significant(x.reshape(-1, 8), 10, out=np.empty((x.size // 8, 8), order="F"))
 
 
 def test_write_is_atomic(walk, tmp_path):
