@@ -19,14 +19,6 @@ from workbench.engine import CleanResult, Engine, training
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
-#: windows evaluated per forward pass at inference. Small passes keep the LSTM's
-#: activations and the filter's (B, 31, C) float64 arrays near the cache: on a 39-s take
-#: (4,723 frames) ebf cleans at 7.0-8.9k frames/s with 512 against 4.4-5.2k with 4096,
-#: bit-identical (2-core AVX2 EPYC; 256 changed the output in the last bits there); on
-#: the 10-minute take 9.2-9.6 s with 128 against 9.7-11.7 s with 512, bit-identical for
-#: ebf and ebd>ebf (2-core Xeon with AMX)
-INFERENCE_CHUNK = 128
-
 
 @dataclass(frozen=True)
 class TrainingParams:
@@ -79,6 +71,14 @@ class WindowEngine(Engine):
     ERRORS_IN_STDS: ClassVar[bool] = False
     #: the training loss is the mean per-frame RMS error (else the mean squared error)
     FRAME_RMS_LOSS: ClassVar[bool] = True
+    #: windows evaluated per forward pass at inference. Small passes keep the LSTM's
+    #: activations and the filter's (B, 31, C) float64 arrays near the cache: on a 39-s
+    #: take (4,723 frames) ebf cleans at 7.0-8.9k frames/s with 512 against 4.4-5.2k with
+    #: 4096, bit-identical (2-core AVX2 EPYC; 256 changed the output in the last bits
+    #: there); on the 10-minute take 9.2-9.6 s with 128 against 9.7-11.7 s with 512,
+    #: bit-identical for ebf and ebd>ebf (2-core Xeon with AMX). EBD, with no filter
+    #: arrays, takes 512.
+    INFERENCE_CHUNK: ClassVar[int] = 128
 
     net_ = None
     norm_: Normaliser | None = None
@@ -153,8 +153,8 @@ class WindowEngine(Engine):
         with torch.inference_mode():
             codes = self.net_.encode(torch.from_numpy(data.inputs))
             values = torch.from_numpy(data.values)  # float64: filters in double precision
-            for i in range(0, centres.size, INFERENCE_CHUNK):
-                idx, valid = window_index(centres[i : i + INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
+            for i in range(0, centres.size, self.INFERENCE_CHUNK):
+                idx, valid = window_index(centres[i : i + self.INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
                 idx_t = torch.from_numpy(idx)
                 pred, diag = self._predict(self.net_, codes[idx_t], values[idx_t], torch.from_numpy(valid))
                 done = slice(i, i + len(idx))

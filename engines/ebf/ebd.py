@@ -66,11 +66,20 @@ NOISE_LEVELS = (0.0, 0.1, 0.5, 0.9)
 LONG_GAP_S = (2.0, 4.0)
 
 
+def joint_missing(data: FrameData) -> np.ndarray:
+    """(F, C / 3) the missing mask of one angle channel per joint: a joint's three angle
+    channels go missing together (an observation's mask is per joint), so the gap
+    measures of :mod:`workbench.core.channels` on it, repeated three times, are theirs
+    on ``data.missing`` at a third of the work."""
+    return data.missing[:, ::3]
+
+
 class EBD(WindowEngine):
     """Fills gaps from context: B-LSTM over a strided window, observed samples kept."""
 
     STRIDE = 4
     RUN = 32
+    INFERENCE_CHUNK = 512  # 10-minute take, bf16 on AMX: 3.7-3.9 s against 4.2 with 128, bit-identical
     WITH_MASK = True
     MISSING_ONLY = True
     ERRORS_IN_STDS = True
@@ -133,7 +142,7 @@ class EBD(WindowEngine):
         the constant-velocity smoother's path where the take's angles are quiet
         (:func:`workbench.engine.smoothing.angles_are_quiet`)."""
         L = self.params.smooth_hole_frames
-        holes = data.missing & (hole_length(data.missing) <= L)
+        holes = data.missing & np.repeat(hole_length(joint_missing(data)) <= L, 3, axis=1)
         if not (L and holes.any() and angles_are_quiet(observation.skeleton, data.X, observation.observed)):
             return data.values
         return np.where(holes, smooth_and_fill(data.values, ~data.missing), data.values)
@@ -166,8 +175,9 @@ class EBD(WindowEngine):
         if centres.size:
             pred, _ = self._run(data, centres)
             block = np.ix_(centres, angle_columns(observation.skeleton))
-            blend = self.params.blend_frames
-            share = np.clip(gap_distance(data.missing)[centres] / blend, 0.0, 1.0) if blend > 0 else 1.0
+            blend, share = self.params.blend_frames, 1.0
+            if blend > 0:
+                share = np.repeat(np.clip(gap_distance(joint_missing(data))[centres] / blend, 0.0, 1.0), 3, axis=1)
             base = self._bridge(observation, data)[centres]
             X[block] = np.where(data.missing[centres], base + share * (pred - base), X[block])
             del pred, share, base

@@ -22,6 +22,7 @@ from engines.ebf.features import (  # noqa: E402
 from engines.ebf.nets import (  # noqa: E402
     circular_mean,
     filter_windows,
+    gaussian_filter,
     gaussian_logits,
     local_quadratic_weights,
     offsets_like,
@@ -63,6 +64,17 @@ def test_a_whole_turn_inside_the_window_does_not_move_the_average():
     turned[:, 20:] += 360.0  # an unwrapping slip 5 frames after the centre
     logits = gaussian_logits(torch.full((2, 3), 6.0, dtype=torch.float64), offsets_like(values))
     assert torch.allclose(filter_windows(logits, turned, valid)[0], filter_windows(logits, values, valid)[0])
+
+
+@pytest.mark.parametrize("edge", [False, True])
+def test_the_gaussian_filter_is_the_normalised_one(edge):
+    values, valid = _windows(B=6, C=5, seed=2)
+    values[:, 20:] += 350.0  # far from the centre frame: the circular mean's branch matters
+    if edge:
+        valid[2, :10] = False  # a window running off the start of the clip
+    sigma = torch.tensor([0.01, 0.4, 1.0, 3.0, 8.0, 1e4], dtype=torch.float64)[:, None].expand(6, 5)
+    expected, _ = filter_windows(gaussian_logits(sigma, offsets_like(values)), values, valid)
+    assert torch.allclose(gaussian_filter(sigma, values, valid), expected, rtol=0, atol=1e-10)
 
 
 def test_constant_signal_stays_constant():
@@ -225,11 +237,9 @@ def test_the_lstm_runs_in_bf16_where_the_cpu_does(ebf, ebf_float32, walk):
 
 
 def test_offline_cleaning_in_several_network_passes_equals_one(ebf, walk, monkeypatch):
-    import engines.ebf.base as base
-
     obs = parse_corruption("angular:0.5+gaps:0.01").apply(walk, seed=1)
     whole = ebf.clean(obs).motion.channels  # 343 windows: one pass
-    monkeypatch.setattr(base, "INFERENCE_CHUNK", 100)
+    monkeypatch.setattr(type(ebf), "INFERENCE_CHUNK", 100)
     assert np.abs(ebf.clean(obs).motion.channels - whole).max() < 1e-6
 
 
