@@ -24,6 +24,8 @@ RADIUS = 15
 VELOCITY_BASELINE = 8
 #: smallest per-feature std used for normalisation (degrees, or degrees per second)
 STD_FLOOR = 1.0
+#: frames normalised at a time by :func:`frame_data`: its temporaries stay in cache
+FEATURE_BLOCK = 4096
 #: range of :func:`noise_context` (natural log of a noise std in training stds)
 NOISE_CONTEXT_RANGE = (-8.0, 2.0)
 
@@ -149,15 +151,20 @@ def frame_data(
     velocity, plus (``with_mask``, EBD) the observed mask of the angle channels (0/1),
     plus (``with_noise``) the take's :func:`noise_context`, the same on every frame."""
     X = bridge_gaps(observation)
-    X[:, layout.columns] = anchor_turns(X[:, layout.columns], norm.angle_mean)
-    values = X[:, layout.columns]
+    values = anchor_turns(X[:, layout.columns], norm.angle_mean)
+    X[:, layout.columns] = values
     missing = ~observation.channel_observed[:, layout.columns]
-    parts = [norm(np.concatenate([values, layout.root_velocity(X, observation.motion.fps)], axis=1))]
+    F, C = values.shape
+    inputs = np.empty((F, C + 3 + (C if with_mask else 0) + (C if with_noise else 0)), np.float32)
+    velocity = layout.root_velocity(X, observation.motion.fps)
+    for start in range(0, F, FEATURE_BLOCK):  # float64 arithmetic, float32 kept: no whole-take temporaries
+        block = slice(start, start + FEATURE_BLOCK)
+        inputs[block, : C + 3] = norm(np.concatenate([values[block], velocity[block]], axis=1))
     if with_mask:
-        parts.append((~missing).astype(float))
+        inputs[:, C + 3 : 2 * C + 3] = ~missing
     if with_noise:
-        parts.append(np.broadcast_to(noise_context(values, ~missing, norm), missing.shape))
-    return FrameData(X, values, np.concatenate(parts, axis=1).astype(np.float32), missing)
+        inputs[:, -C:] = noise_context(values, ~missing, norm)
+    return FrameData(X, values, inputs, missing)
 
 
 def window_offsets(radius: int = RADIUS, stride: int = 1) -> np.ndarray:
