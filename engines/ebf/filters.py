@@ -144,7 +144,7 @@ class FilterEngine(WindowEngine):
         from .nets import (
             circular_mean,
             filter_windows,
-            gaussian_logits,
+            gaussian_filter,
             local_quadratic_weights,
             offsets_like,
             sigma_frames,
@@ -162,7 +162,7 @@ class FilterEngine(WindowEngine):
             if self.quadratic:
                 out = circular_mean(local_quadratic_weights(sigma, offsets, valid), values)
             else:
-                out, _ = filter_windows(gaussian_logits(sigma, offsets), values, valid)
+                out = gaussian_filter(sigma, values, valid)
         diag = {"filter_sigma_frames": sigma}
         if self.bias:
             bias = z[:, -C:] * torch.as_tensor(self.norm_.angle_std, dtype=values.dtype)

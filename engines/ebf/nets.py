@@ -142,13 +142,29 @@ def filter_windows(
     return circular_mean(weights, values), weights
 
 
+def gaussian_filter(sigma: torch.Tensor, values: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """(B, C) what ``filter_windows(gaussian_logits(sigma, offsets), values, valid)``
+    filters (to rounding), for Gaussians of std ``sigma`` (B, C) frames over windows of
+    angles ``values`` (B, L, C) degrees whose frames exist where ``valid`` (B, L), the
+    centre frame among them: the weights are left unnormalised (the centre frame's is
+    1), which the circular mean does not need, and invalid frames are zeroed only in a
+    batch that has any: the softmax and the mask took 8 % of ebf's cleaning time."""
+    weights = torch.exp(gaussian_logits(sigma, offsets_like(values)).to(values.dtype))
+    if not bool(valid.all()):
+        weights = weights * valid[:, :, None]
+    return circular_mean(weights, values)
+
+
 def circular_mean(weights: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
     """(B, C) weighted circular mean of the angles ``values`` (B, L, C) in degrees with
-    ``weights`` (B, L, C) that sum to 1 over the window (some may be negative), on the
-    centre frame's branch."""
+    ``weights`` (B, L, C) whose sum over the window is positive (some may be negative;
+    their scale does not matter), on the centre frame's branch. ``values`` carry no
+    gradient (the window's (B, L, C) temporaries are reused in place)."""
     centre = values[:, values.shape[1] // 2]
-    deviation = torch.deg2rad(values - centre[:, None])
-    mean = torch.atan2((weights * torch.sin(deviation)).sum(dim=1), (weights * torch.cos(deviation)).sum(dim=1))
+    deviation = torch.deg2rad_(values - centre[:, None])
+    sin = torch.sin(deviation)
+    cos = deviation.cos_()
+    mean = torch.atan2((weights * sin).sum(dim=1), (weights * cos).sum(dim=1))
     return centre + torch.rad2deg(mean)
 
 
