@@ -103,3 +103,17 @@ def test_a_one_frame_take_comes_back_at_its_own_rate(walk, studio_take):
         assert view.observation.motion.fps == 50.0 and view.observation.n_frames == 1
         back = view.restore(CleanResult(view.observation.motion)).motion
         assert back.fps == take.fps and back.skeleton is take.skeleton and back.allclose(take, atol=1e-9)
+
+
+def test_a_joint_is_missing_where_any_of_its_channels_is_nan(walk, stretchy_take):
+    from workbench.core.motion import channel_joints, joint_any
+
+    rng = np.random.default_rng(4)
+    for take in (walk.slice(0, 40), stretchy_take):
+        channels = take.channels
+        holes = rng.random(channels.shape) < 0.02  # single channels, not whole joints
+        expected = np.zeros((take.n_frames, take.skeleton.n_joints), bool)
+        np.logical_or.at(expected, (slice(None), channel_joints(take.skeleton)), holes)
+        assert np.array_equal(joint_any(holes, take.skeleton), expected)
+        channels[holes] = np.nan
+        assert np.array_equal(Observation(take.with_channels(channels)).observed, ~expected)
