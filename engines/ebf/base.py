@@ -71,6 +71,9 @@ class WindowEngine(Engine):
     ERRORS_IN_STDS: ClassVar[bool] = False
     #: the training loss is the mean per-frame RMS error (else the mean squared error)
     FRAME_RMS_LOSS: ClassVar[bool] = True
+    #: the prediction reads the angle values of the whole window (a filter); else of its
+    #: centre frame only, and inference gathers just that one (B, 1, C)
+    WINDOW_VALUES: ClassVar[bool] = True
     #: windows evaluated per forward pass at inference. Small passes keep the LSTM's
     #: activations and the filter's (B, 31, C) float64 arrays near the cache: on a 39-s
     #: take (4,723 frames) ebf cleans at 7.0-8.9k frames/s with 512 against 4.4-5.2k with
@@ -120,7 +123,8 @@ class WindowEngine(Engine):
 
     def _predict(self, net, windows, values, valid) -> tuple[Any, dict[str, Any]]:
         """Cleaned angles (B, C) in degrees of windows of codes (B, L, E), given the
-        window's angle values (B, L, C) and ``valid`` (B, L); plus named (B, C)
+        window's angle values (B, L, C) (or, without :attr:`WINDOW_VALUES`, possibly its
+        centre frame's alone, (B, 1, C)) and ``valid`` (B, L); plus named (B, C)
         diagnostics."""
         raise NotImplementedError
 
@@ -156,7 +160,8 @@ class WindowEngine(Engine):
             for i in range(0, centres.size, self.INFERENCE_CHUNK):
                 idx, valid = window_index(centres[i : i + self.INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
                 idx_t = torch.from_numpy(idx)
-                pred, diag = self._predict(self.net_, codes[idx_t], values[idx_t], torch.from_numpy(valid))
+                window_values = values[idx_t if self.WINDOW_VALUES else idx_t[:, RADIUS, None]]
+                pred, diag = self._predict(self.net_, codes[idx_t], window_values, torch.from_numpy(valid))
                 done = slice(i, i + len(idx))
                 preds[done] = pred.double().numpy()
                 for key, value in diag.items():
