@@ -359,21 +359,23 @@ def _motion_from_values(header: Skeleton, fps: float, values: np.ndarray, name: 
     reference root (even in a take where it stands still), a stretchy bone. The unit is
     guessed on the resulting rest pose."""
     F, J = values.shape[0], header.n_joints
+    positioned = np.flatnonzero(header.has_position[1:]) + 1  # the joints below the root with position channels
+    slots = np.zeros(J, int)  # each of those joints' slot in `local`; the root's is 0
+    slots[positioned] = np.arange(1, positioned.size + 1)
     angles = np.zeros((F, J, 3))
-    local = np.zeros((F, J, 3))  # the position channels of every joint, 0 where it has none
+    local = np.zeros((F, 1 + positioned.size, 3))  # the root's position channels, then theirs (0 where none)
     for col, (j, is_position, slot) in enumerate(_column_layout(header)):
-        target = local if is_position else angles
-        target[:, j, slot] = values[:, col]
-    root = local[:, 0]
-    positioned = np.flatnonzero(header.has_position[1:]) + 1
-    rest = _same_translation(local[:, positioned], header.file_offsets[positioned]).all(axis=0)  # NaN is no rest
-    moving = positioned[~rest].tolist()
+        if is_position:
+            local[:, slots[j], slot] = values[:, col]
+        else:
+            angles[:, j, slot] = values[:, col]
+    angles.setflags(write=False)  # the Motion takes it as it is: a long take's 50 MB are not copied
+    rest = _same_translation(local[:, 1:], header.file_offsets[positioned]).all(axis=0)  # NaN is no rest
+    moving = positioned[~rest]
     offsets = np.array(header.offsets)
-    fixed = header.has_position.copy()
-    fixed[[0, *moving]] = False
-    offsets[fixed] = local[0, fixed]
-    skeleton = header.replace(offsets=offsets, translated=tuple(moving), unit_cm=0.0)
-    return Motion(skeleton, fps, root, angles, name, translations=local[:, moving])
+    offsets[positioned[rest]] = local[0, 1:][rest]
+    skeleton = header.replace(offsets=offsets, translated=tuple(moving.tolist()), unit_cm=0.0)
+    return Motion(skeleton, fps, local[:, 0], angles, name, translations=local[:, slots[moving]])
 
 
 def motion_values(motion: Motion) -> np.ndarray:
