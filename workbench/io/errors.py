@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import re
 from pathlib import Path
 
 
@@ -23,7 +25,12 @@ class OutputFileError(OSError):
     output is written atomically (:func:`workbench.io.atomic.atomic_path`)."""
 
     def __init__(self, path: str | Path, cause: OSError) -> None:
-        super().__init__(cause.errno, cause.strerror or str(cause))
+        errno, reason = cause.errno, cause.strerror
+        rust = re.fullmatch(r".* \(os error (\d+)\)", str(cause))
+        if errno is None and rust:  # polars writes the BVH frame lines itself: "<reason> (os error N)"
+            errno = int(rust[1])
+            reason = os.strerror(errno)
+        super().__init__(errno, reason or str(cause))
         self.path = str(path)
 
     def __str__(self) -> str:
