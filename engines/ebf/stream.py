@@ -5,16 +5,20 @@ same edge padding (the first frame repeated before the take, the last after it),
 unwrap the angles by the same causal rule. The root's filter (:mod:`.root`) also sees
 only the window. Where the B-LSTM runs in bf16 (the engines' ``bf16``, on by default on
 CPUs that run it natively), its kernels for one window and for a batch of them round
-differently: the two then agree to within hundredths of a degree (0.044 at most on CMU
-takes under ``angular:0.5``, ``angular:1`` and ``spatial:1``); with ``bf16=false``, to
-float precision.
+differently: the two then agree to within hundredths of a degree (0.044 at most on 8 CMU
+takes under ``angular:0.5``, ``angular:1`` and ``spatial:1``, 0.030 on 6 Bandai takes);
+with ``bf16=false``, to float precision.
 
 >>> stream = engine.stream(motion.skeleton, motion.fps)
 >>> out = [row for f in motion.channels if (row := stream.push(f)) is not None]
 >>> out += list(stream.flush())            # the last 15 frames
 
-Rows are channel-matrix frames (D,) = (3 + 3J,): root position, then every joint's Euler
-angles in degrees. Frames must be complete (no NaN): a stream cannot bridge gaps.
+Rows are channel-matrix frames (D,) = (3 + 3J + 3T,): root position, every joint's Euler
+angles in degrees, the translated joints' translations. Frames must be complete (no NaN):
+a stream cannot bridge gaps. A take whose body hangs under a reference node (a
+MotionBuilder export: ``joint_Root`` carries the translated ``Hips``) streams as offline
+cleaning sees it, each frame in its body view (:mod:`workbench.engine.view`) and back,
+the joints above the body root as they came.
 """
 
 from __future__ import annotations
@@ -23,8 +27,10 @@ from collections import deque
 
 import numpy as np
 
+from workbench.core.motion import Motion, channel_count
 from workbench.core.skeleton import Skeleton
 from workbench.engine import EngineError
+from workbench.engine.view import body_skeleton, from_body, to_body
 
 from .features import RADIUS, VELOCITY_BASELINE, Layout, rotation_rate_dps
 from .root import root_frames, roughness, smooth_root
@@ -63,9 +69,10 @@ class FilterStream:
     of one skeleton at ``fps`` frames per second."""
 
     def __init__(self, engine, skeleton: Skeleton, fps: float) -> None:
-        engine.use_weights_for(skeleton)  # the committed weights trained for it, if any
+        body = body_skeleton(skeleton)  # frame by frame: the body view, no resampling
+        engine.use_weights_for(body)  # the committed weights trained for it, if any
         engine.require_fitted()
-        engine.check_skeleton(skeleton)  # frame by frame: no body view, no resampling
+        engine.check_skeleton(body)
         if getattr(engine.params, "noise_context", False):
             raise EngineError(
                 f"engine {engine.spec!r} estimates each take's noise over the whole take, so it cannot "
@@ -77,10 +84,12 @@ class FilterStream:
                 f"not {fps:g}; clean the take offline (`workbench clean`), which resamples it"
             )
         self.engine = engine
-        self.layout = Layout.of(skeleton)
+        self.layout = Layout.of(body)
         self.fps = float(fps)
-        self.width = 3 + 3 * skeleton.n_joints
-        self.unit_cm = skeleton.unit_cm
+        self.width = channel_count(skeleton)
+        self.unit_cm = body.unit_cm
+        # a take carried by a reference node: each frame to its body view and back
+        self._views = (_one_frame(skeleton, fps), _one_frame(body, fps)) if skeleton.body_root else None
         self._reset()
 
     def _reset(self) -> None:
@@ -93,7 +102,7 @@ class FilterStream:
             rough=((2, 3), float),  # root roughness (NaN: not known)
             valid=((), bool),
         )  # the window frame exists
-        self._pending: deque = deque()  # raw rows (D,) not yet output
+        self._pending: deque = deque()  # (raw row (D,), its body view) not yet output
         self._recent: deque = deque(maxlen=VELOCITY_BASELINE + 1)  # the last frames' roots (12,)
         self._unwrapped: deque = deque(maxlen=3)  # the last frames' unwrapped angles (C,)
         self._anchor = None  # whole turns that anchor each channel
@@ -132,9 +141,13 @@ class FilterStream:
     def _push(self, frame: np.ndarray) -> np.ndarray | None:
         import torch
 
-        row = np.array(frame, dtype=float).reshape(-1)
-        if row.size != self.width or not np.isfinite(row).all():
+        raw = np.array(frame, dtype=float).reshape(-1)
+        if raw.size != self.width or not np.isfinite(raw).all():
             raise EngineError(f"stream frames must be {self.width} finite channel values (no gaps)")
+        row = raw
+        if self._views is not None:
+            take, body = self._views
+            row = to_body(take.with_channels(raw[None]), body.skeleton).channels[0]
         values = self._unwrap(row[self.layout.columns])
         root = root_frames(row[None, :6], self.layout.root_order)[0]
         self._recent.append(root)
@@ -151,7 +164,7 @@ class FilterStream:
             for _ in range(RADIUS):  # the first frame repeated before the take
                 self._window.append(**frame_fields, valid=False)
         self._window.append(**frame_fields, valid=True)
-        self._pending.append(row)
+        self._pending.append((raw, row))
         return self._emit() if self._window.full else None
 
     def flush(self) -> np.ndarray:
@@ -180,7 +193,8 @@ class FilterStream:
                 torch.from_numpy(w["valid"])[None],
             )
         pred = pred[0].double().numpy()
-        row = self._pending.popleft().copy()
+        raw, row = self._pending.popleft()
+        row = row.copy()
         cols = self.layout.columns
         row[cols] = pred + 360.0 * np.round((row[cols] - pred) / 360.0)  # back on the input's branch
         if self.engine.params.root_sigma_frames > 0:
@@ -194,4 +208,14 @@ class FilterStream:
             )
             row[:6] = root[0]
         self._window.pop()
+        if self._views is not None:  # the joints above the body root as they came
+            take, body = self._views
+            row = from_body(body.with_channels(row[None]), take.with_channels(raw[None])).channels[0]
         return row
+
+
+def _one_frame(skeleton: Skeleton, fps: float) -> Motion:
+    """A one-frame motion of ``skeleton`` whose ``with_channels`` makes a stream's frames
+    motions (to go to the body view and back)."""
+    J, T = skeleton.n_joints, len(skeleton.translated)
+    return Motion(skeleton, fps, np.zeros((1, 3)), np.zeros((1, J, 3)), translations=np.zeros((1, T, 3)))

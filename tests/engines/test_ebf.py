@@ -243,6 +243,17 @@ def test_offline_cleaning_in_several_network_passes_equals_one(ebf, walk, monkey
     assert np.abs(ebf.clean(obs).motion.channels - whole).max() < 1e-6
 
 
+def test_a_take_on_a_reference_node_streams_in_its_body_view(ebf_float32, studio_take):
+    """A MotionBuilder export (joint_Root carrying the translated Hips, 30 fps) streams as
+    offline cleaning sees it, on the studio's weights; the reference node as it came."""
+    obs = parse_corruption("angular:0.5").apply(studio_take, seed=2)
+    stream = ebf_float32.stream(studio_take.skeleton, studio_take.fps)
+    out = [row for frame in obs.motion.channels if (row := stream.push(frame)) is not None]
+    out = np.array(out + list(stream.flush()))
+    assert np.abs(out - ebf_float32.clean(obs).motion.channels).max() < 1e-4
+    assert np.array_equal(out[:, :6], obs.motion.channels[:, :6])  # joint_Root: position and angles
+
+
 def test_stream_of_a_take_shorter_than_the_window(ebf_float32, walk):
     short = walk.slice(0, 9)
     obs = parse_corruption("spatial:1").apply(short, seed=1)
