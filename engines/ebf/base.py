@@ -20,6 +20,15 @@ from workbench.engine import CleanResult, Engine, training
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
 
+def _inner_windows(frames, radius: int, stride: int):
+    """(F - 2 radius stride, 2 radius + 1, ...) views of the windows of ``frames`` (F, ...),
+    a torch tensor with F > 2 radius stride, around frames radius stride to F - 1 - radius
+    stride (those that need no edge padding): the windows ``frames[idx]`` gathers for
+    :func:`window_index`'s ``idx``, without copying them (a 10-minute take's ebf gathered
+    2.3 GB: 0.3 s)."""
+    return frames.unfold(0, 2 * radius * stride + 1, 1)[..., ::stride].movedim(-1, 1)
+
+
 @dataclass(frozen=True)
 class TrainingParams:
     """Parameters common to the four engines: how they train (which does not change the
@@ -154,14 +163,28 @@ class WindowEngine(Engine):
 
         preds = np.zeros((centres.size, data.values.shape[1]))
         diags: dict[str, np.ndarray] = {}  # filled chunk by chunk: no list of chunks to join
+        reach = RADIUS * self.STRIDE  # frames from a window's centre to its ends
         with torch.inference_mode():
             codes = self.net_.encode(torch.from_numpy(data.inputs))
             values = torch.from_numpy(data.values)  # float64: filters in double precision
+            inner = data.n_frames > 2 * reach  # windows that need no edge padding exist
+            code_windows = _inner_windows(codes, RADIUS, self.STRIDE) if inner else None
+            value_windows = _inner_windows(values, RADIUS, self.STRIDE) if inner and self.WINDOW_VALUES else None
             for i in range(0, centres.size, self.INFERENCE_CHUNK):
-                idx, valid = window_index(centres[i : i + self.INFERENCE_CHUNK], data.n_frames, RADIUS, self.STRIDE)
-                idx_t = torch.from_numpy(idx)
-                window_values = values[idx_t if self.WINDOW_VALUES else idx_t[:, RADIUS, None]]
-                pred, diag = self._predict(self.net_, codes[idx_t], window_values, torch.from_numpy(valid))
+                chunk = centres[i : i + self.INFERENCE_CHUNK]
+                idx, valid = window_index(chunk, data.n_frames, RADIUS, self.STRIDE)
+                if chunk[0] >= reach and chunk[-1] < data.n_frames - reach and chunk[-1] - chunk[0] == len(chunk) - 1:
+                    window_codes = code_windows[chunk[0] - reach : chunk[-1] - reach + 1]  # consecutive: views
+                    window_values = (
+                        value_windows[chunk[0] - reach : chunk[-1] - reach + 1]
+                        if self.WINDOW_VALUES
+                        else values[chunk[0] : chunk[-1] + 1, None]
+                    )
+                else:
+                    idx_t = torch.from_numpy(idx)
+                    window_codes = codes[idx_t]
+                    window_values = values[idx_t if self.WINDOW_VALUES else idx_t[:, RADIUS, None]]
+                pred, diag = self._predict(self.net_, window_codes, window_values, torch.from_numpy(valid))
                 done = slice(i, i + len(idx))
                 preds[done] = pred.double().numpy()
                 for key, value in diag.items():
