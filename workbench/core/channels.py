@@ -207,10 +207,13 @@ def _observed_around(missing: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     """Frame numbers (F, C) of each sample, of the last observed sample at or before it
     (-inf if none) and of the first at or after it (inf if none), per column."""
     missing = np.asarray(missing, bool)
-    frame = np.broadcast_to(np.arange(missing.shape[0], dtype=float)[:, None], missing.shape)
-    last = np.maximum.accumulate(np.where(missing, -np.inf, frame), axis=0)
-    following = np.minimum.accumulate(np.where(missing, np.inf, frame)[::-1], axis=0)[::-1]
-    return frame, last, following
+    frame = np.arange(missing.shape[0], dtype=float)
+    by_column = np.ascontiguousarray(missing.T)  # (C, F): each column's frames adjacent for the scans
+    last = np.where(by_column, -np.inf, frame)
+    np.maximum.accumulate(last, axis=1, out=last)
+    following = np.where(by_column[:, ::-1], np.inf, frame[::-1])
+    np.minimum.accumulate(following, axis=1, out=following)
+    return np.broadcast_to(frame[:, None], missing.shape), last.T, following[:, ::-1].T
 
 
 def gap_distance(missing: np.ndarray) -> np.ndarray:
