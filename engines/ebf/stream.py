@@ -27,6 +27,7 @@ from collections import deque
 
 import numpy as np
 
+from workbench.core.channels import robust_unwrap_step
 from workbench.core.motion import Motion, channel_count
 from workbench.core.skeleton import Skeleton
 from workbench.engine import EngineError
@@ -109,24 +110,18 @@ class FilterStream:
 
     def _unwrap(self, angles: np.ndarray) -> np.ndarray:
         """One step of the robust unwrapping offline cleaning applies
-        (:func:`workbench.core.channels.unwrap_deg`, same arithmetic): each sample within
-        180 degrees of the median of the three unwrapped samples before it (of the one
-        before, in the first three frames), so one outlier near 180 degrees away does not
-        leave a whole turn behind it; then the anchor turns fixed by the first frame (as
-        :func:`features.anchor_turns`). Offline, a channel that never steps by 180
-        degrees is left as it is, which the median rule gives too unless a channel climbs
-        by nearly 180 degrees a frame for two frames running."""
+        (:func:`workbench.core.channels.robust_unwrap_step`): each sample within 180
+        degrees of the median of the three unwrapped samples before it, so one outlier
+        near 180 degrees away does not leave a whole turn behind it; then the anchor turns
+        fixed by the first frame (as :func:`features.anchor_turns`). Offline, a channel
+        that never steps by 180 degrees is left as it is, which the median rule gives too
+        unless a channel climbs by nearly 180 degrees a frame for two frames running."""
         recent = self._unwrapped
         if not recent:
             self._anchor = 360.0 * np.round((self.engine.norm_.angle_mean - angles) / 360.0)
             unwrapped = angles
         else:
-            if len(recent) < 3:
-                ref = recent[-1]
-            else:
-                a, b, c = recent
-                ref = a + b + c - np.maximum(np.maximum(a, b), c) - np.minimum(np.minimum(a, b), c)
-            unwrapped = angles - 360.0 * np.round((angles - ref) / 360.0)
+            unwrapped = robust_unwrap_step(angles, recent)
         recent.append(unwrapped)
         return unwrapped + self._anchor
 

@@ -50,18 +50,26 @@ def unwrap_deg(X: np.ndarray, observed: np.ndarray | None = None, *, robust: boo
     if cols.size and robust:
         out = filled[:, cols]
         for t in range(1, out.shape[0]):
-            if t < 3:
-                ref = out[t - 1]
-            else:
-                a, b, c = out[t - 3], out[t - 2], out[t - 1]
-                ref = a + b + c - np.maximum(np.maximum(a, b), c) - np.minimum(np.minimum(a, b), c)
-            out[t] -= 360.0 * np.round((out[t] - ref) / 360.0)
+            out[t] = robust_unwrap_step(out[t], out[max(t - 3, 0) : t])
         filled[:, cols] = out
     elif cols.size:
         filled[:, cols] = np.unwrap(filled[:, cols], period=360.0, axis=0)
     if not complete:
         filled[~observed] = np.nan
     return filled
+
+
+def robust_unwrap_step(sample: np.ndarray, before) -> np.ndarray:
+    """``sample`` (C,) degrees, shifted by whole turns to within 180 degrees of the median
+    of ``before``, the (up to) three unwrapped samples before it, oldest first (of the
+    last one, when there are fewer than three): one step of :func:`unwrap_deg` with
+    ``robust``, which a stream takes frame by frame."""
+    if len(before) < 3:
+        ref = before[-1]
+    else:
+        a, b, c = before[-3], before[-2], before[-1]
+        ref = a + b + c - np.maximum(np.maximum(a, b), c) - np.minimum(np.minimum(a, b), c)
+    return sample - 360.0 * np.round((sample - ref) / 360.0)
 
 
 def interpolate_gaps(X: np.ndarray, observed: np.ndarray, kind: str = "linear") -> np.ndarray:
