@@ -486,11 +486,10 @@ def significant(values: np.ndarray, digits: int, out: np.ndarray | None = None) 
 
 def _write_frame_lines(out: BinaryIO, values: np.ndarray, digits: int) -> None:
     """Write the frame lines of values (F, D) to ``out``, rounding ``values`` in place:
-    each number :func:`significant`
-    to ``digits`` digits and printed in its shortest form that reads back as it, by
-    polars' compiled, multithreaded CSV writer ("12.5", "0.0", "1e-7"), one space apart,
-    LF ends. polars writes to the file itself: through a buffer in memory, a 10-minute
-    take's 68 MB of lines were copied twice more (0.09 s of 0.3)."""
+    each number :func:`significant` to ``digits`` digits and printed in its shortest form
+    that reads back as it, by polars' compiled, multithreaded CSV writer ("12.5", "0.0",
+    "1e-7"), one space apart, LF ends. polars writes to the file itself: through a buffer
+    in memory, a 10-minute take's 68 MB of lines were copied twice more (0.09 s of 0.3)."""
     if values.shape[1] == 0:
         out.write(b"\n" * len(values))
         return

@@ -25,12 +25,12 @@ class OutputFileError(OSError):
     output is written atomically (:func:`workbench.io.atomic.atomic_path`)."""
 
     def __init__(self, path: str | Path, cause: OSError) -> None:
-        errno, reason = cause.errno, cause.strerror
-        rust = re.fullmatch(r".* \(os error (\d+)\)", str(cause))
-        if errno is None and rust:  # polars writes the BVH frame lines itself: "<reason> (os error N)"
-            errno = int(rust[1])
-            reason = os.strerror(errno)
-        super().__init__(errno, reason or str(cause))
+        number, reason = cause.errno, cause.strerror
+        # polars writes the BVH frame lines itself and says "<reason> (os error N)"
+        if number is None and (rust := re.fullmatch(r".* \(os error (\d+)\)", str(cause))):
+            number = int(rust[1])
+            reason = os.strerror(number)
+        super().__init__(number, reason or str(cause))
         self.path = str(path)
 
     def __str__(self) -> str:
