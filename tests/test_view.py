@@ -50,7 +50,8 @@ def test_a_30_fps_take_is_seen_at_120_and_comes_back_with_its_observed_samples(s
     obs = parse_corruption("block:1s").apply(studio_take, 0)
     view = ModelView.of(obs, 120.0)
     assert view.observation.motion.fps == 120.0 and view.observation.n_frames == 4 * (obs.n_frames - 1) + 1
-    assert view.observation.skeleton.n_joints == 21
+    assert view.observation.skeleton.n_joints == 21 and view.observation.capture_step == 4.0
+    assert ModelView.of(obs, 30.0).observation.capture_step == 1.0
     # a frame between two observed ones is observed; one next to the gap is not
     assert view.observation.observed[::4].tolist() == obs.observed[:, 1:].tolist()
     D = view.observation.motion.channels.shape[1]
@@ -70,9 +71,27 @@ def test_resampling_keeps_both_ends_at_a_ratio_that_is_not_whole(walk):
     assert slow.n_frames == int(np.ceil((walk.n_frames - 1) * 50 / 120)) + 1
     np.testing.assert_allclose(slow.positions[[0, -1]], walk.positions[[0, -1]], atol=1e-9)
     view = ModelView.of(Observation(walk), 50.0)
+    assert view.observation.capture_step == 1.0  # resampled down: each frame still measured
     back = view.restore(CleanResult(view.observation.motion)).motion
     assert back.n_frames == walk.n_frames
     np.testing.assert_allclose(back.positions[[0, -1]], walk.positions[[0, -1]], atol=1e-9)
+
+
+@pytest.mark.parametrize("spec", ["cae", "mssa:space=positions,universal=true"])
+def test_an_engine_that_sees_a_30_fps_take_at_120_measures_its_noise_on_the_captured_frames(spec, studio_take):
+    """Measured on every frame of the view, the noise of a 30-fps take seen at 120 fps is
+    next to none (three frames in four are interpolated): these engines left angular noise
+    in (cae 0.92 of the noisy take's angle error, universal mssa 1.1); measured on the
+    captured frames they remove most of it (0.60, 0.62; kalman at 30 fps 0.50)."""
+    from workbench.core.motion import angle_columns
+
+    obs = parse_corruption("angular:0.5").apply(studio_take, 0)
+    cols = angle_columns(studio_take.skeleton)
+
+    def error(m):
+        return np.sqrt(np.mean(((m.channels[:, cols] - studio_take.channels[:, cols] + 180) % 360 - 180) ** 2))
+
+    assert error(registry.create(spec).clean(obs).motion) < 0.7 * error(obs.motion)
 
 
 def test_training_takes_are_shown_as_the_engine_models_them(studio_take, walk):

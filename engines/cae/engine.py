@@ -32,6 +32,12 @@ network completes the image of a take and IK turns it back into angles (the pape
    within ``angle_lever_cm`` (a toe carries the whole leg's noise). ``anchor=false,output_sigma_frames=0``:
    the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
+Every noise estimate above is measured on the take's captured frames: a 30-fps take is seen at the
+network's 120 fps (:mod:`workbench.engine.view`), and three frames in four are interpolated
+(:attr:`workbench.core.motion.Observation.capture_step`). Measured on all of them, a noisy 30-fps take
+showed next to no noise and kept it (Bandai validation, ``angular:0.5``: 0.93 of the noisy take's
+angle error, now 0.74).
+
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
 them as known entries (in a first pass's body frame where the root is missing); the network's miss
 there is added in full, so they are met as far as the bone lengths allow.
@@ -384,14 +390,14 @@ class ConvAutoencoderEngine(Engine):
         return CanonicalJoints(self.humanoid(skeleton)) if self.params.universal else OwnJoints(skeleton, layout)
 
     def _clean(self, observation: Observation, constraints: Constraints | None) -> CleanResult:
-        skeleton = observation.skeleton
+        skeleton, step = observation.skeleton, observation.capture_step
         layout = self.layout_
         imaging = self.imaging(skeleton, layout)
         linear = bridge_gaps(observation)
         holes = self.bridged_holes(observation, linear)
         seen, bridge = observation.channel_observed, channel_mask(holes, skeleton)
         # smoothed once: the holes' bridges and (with anchor) the IK reference
-        smoothed = smooth_and_fill(linear, seen) if self.params.anchor or holes.any() else None
+        smoothed = smooth_and_fill(linear, seen, step=step) if self.params.anchor or holes.any() else None
         bridged = np.where(bridge, smoothed, linear) if holes.any() else linear
         del linear
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
@@ -406,7 +412,7 @@ class ConvAutoencoderEngine(Engine):
         observed[:, self.constant_] = True
         known = imaging.known(~position_unknown(observed, skeleton.parents))
         if self.params.anchor:
-            ground, theta = anchored_trajectory(ground, theta, known[:, 0])
+            ground, theta = anchored_trajectory(ground, theta, known[:, 0], step)
         image, mask = encode(layout, image_positions, theta, ground), image_mask(layout, known)
         mirror = mirror_rows(layout, imaging.names) if self.params.views > 1 else None
         net_out = self.complete(image, mask, mirror, self.params.views)
@@ -427,9 +433,9 @@ class ConvAutoencoderEngine(Engine):
         raw_positions = imaging.targets(raw, P)  # the take's joints where the network put them
         del P, image_positions
         if exact.any() or self.params.anchor:
-            out = out + self.correction(image, mask, out, exact)
+            out = out + self.correction(image, mask, out, exact, step)
             if self.params.anchor and self.params.hole_blend_frames:
-                out = self.blend_short_holes(out, mask)
+                out = self.blend_short_holes(out, mask, step)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         del image, net_out, out
         root, angles, translations = imaging.solve(
@@ -455,10 +461,9 @@ class ConvAutoencoderEngine(Engine):
         holes = missing & (length <= p.short_hole_frames)
         partial = missing & (length <= p.partial_hole_frames) & observation.observed[:, :1] & ~holes
         if partial.any():
-            positions = joint_positions(
-                observation.skeleton, channels[:, :3], channels[:, 3:].reshape(observation.n_frames, -1, 3)
-            )
-            if angles_bridge_holes(observation.skeleton, channels, observation.observed, positions, p.short_lever_cm):
+            skeleton, step = observation.skeleton, observation.capture_step
+            positions = joint_positions(skeleton, channels[:, :3], channels[:, 3:].reshape(observation.n_frames, -1, 3))
+            if angles_bridge_holes(skeleton, channels, observation.observed, positions, p.short_lever_cm, step):
                 holes |= partial
         return holes
 
@@ -483,8 +488,9 @@ class ConvAutoencoderEngine(Engine):
                 np.zeros(observed.shape, bool),
                 ref,
             )
+        step = observation.capture_step
         ref, short, frames = ik_reference(
-            skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed
+            skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed, step
         )
         return short, frames, ref
 
@@ -494,34 +500,38 @@ class ConvAutoencoderEngine(Engine):
         sigma = self.params.output_sigma_frames
         return normalized_gaussian(out, np.ones(out.shape[0]), sigma) if sigma > 0 else out
 
-    def correction(self, image: np.ndarray, mask: np.ndarray, out: np.ndarray, exact: np.ndarray) -> np.ndarray:
+    def correction(
+        self, image: np.ndarray, mask: np.ndarray, out: np.ndarray, exact: np.ndarray, step: float = 1.0
+    ) -> np.ndarray:
         """(F, H) added to the network's output ``out``: its miss (image - out) in full at the
         ``exact`` entries; at the other known entries the miss smoothed row by row by the
         constant-velocity smoother (0 without ``anchor``); bridged linearly across the holes.
 
         The smoother's measurement variance is the observation's (its noise is what the miss
         must shed; a clean take's miss passes through), from the mean square of its second
-        differences (the module docstring), its smoothing ratio the one that minimises the
-        risk on the miss, as the ``kalman`` engine picks it."""
+        differences over the captured frames, ``step`` apart (the module docstring), its
+        smoothing ratio the one that minimises the risk on the miss, as the ``kalman``
+        engine picks it."""
         miss = image - out  # in place from here: a long take's (F, H) are 35 MB each
         miss[~mask] = 0.0
         kept = exact
         if self.params.anchor:
-            r = measurement_variance(image, mask, robust=False)
+            r = measurement_variance(image, mask, robust=False, step=step)
             lam = smoothing_ratio(interpolate_gaps(miss, mask), r, mask.mean(axis=0))
             np.copyto(miss, cv_smooth(miss, mask, r / lam, r), where=~exact)
             kept = mask
         miss[~kept] = 0.0
         return interpolate_gaps(miss, mask)
 
-    def blend_short_holes(self, out: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    def blend_short_holes(self, out: np.ndarray, mask: np.ndarray, step: float = 1.0) -> np.ndarray:
         """``out`` (F, H) with its entries in each hole of L unknown frames of a row (L <
         ``hole_blend_frames``), in frames where the root is unknown too, moved towards the
         constant-velocity smoother's fill of the row's known entries, by the weight
         1 - L / ``hole_blend_frames``: the network fills long gaps better, the smoother
         short ones. Holes where only part of the body is missing are left to the network
         for speed: there the smoother helps less and costs more (``drop:0.5``, test
-        split: 0.291 -> 0.255 cm, for 1.8 ms of a 20-ms clean, the fill spanning the take)."""
+        split: 0.291 -> 0.255 cm, for 1.8 ms of a 20-ms clean, the fill spanning the take).
+        ``step``: frames per captured frame, for the smoother's noise."""
         H = self.params.hole_blend_frames
         length = hole_length(~mask)
         short = (length < H) & ~mask & ~mask[:, :1]  # in frames whose root is unknown too
@@ -531,7 +541,7 @@ class ConvAutoencoderEngine(Engine):
         hit = np.flatnonzero(short[:, cols].any(axis=1))
         span = slice(max(hit[0] - H, 0), hit[-1] + H + 1)  # the holes and H frames around them
         rows = out[span, cols]
-        fill = smooth_and_fill(rows, mask[span, cols])
+        fill = smooth_and_fill(rows, mask[span, cols], step=step)
         weight = np.where(short[span, cols], 1.0 - length[span, cols] / H, 0.0)
         out = out.copy()
         out[span, cols] += weight * (fill - rows)
@@ -575,16 +585,19 @@ def _by_skeleton(motions: Sequence[Motion]) -> list[list[Motion]]:
     return list(groups.values())
 
 
-def anchored_trajectory(ground: np.ndarray, theta: np.ndarray, root_known: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def anchored_trajectory(
+    ground: np.ndarray, theta: np.ndarray, root_known: np.ndarray, step: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """The root's floor points (F, 3) and headings (F,) radians where ``root_known`` (F,),
     smoothed by the ``kalman`` engine's constant-velocity smoother with the noise levels
-    it estimates from them, and its fill where the root is unknown. The image is
+    it estimates from them (on the captured frames, ``step`` apart), and its fill where
+    the root is unknown. The image is
     root-relative, so a noisy root would otherwise shake the whole body: every joint's
     rows would carry the root's noise, and the decoded pose would be put back on the
     noisy track. Across a gap inside the take the floor path is
     :data:`SMOOTHER_PATH_SHARE` of this fill and the rest the network's."""
     Y = np.column_stack([ground[:, 0], ground[:, 2], np.unwrap(theta)])
-    S = smooth_and_fill(Y, np.repeat(root_known[:, None], 3, axis=1))
+    S = smooth_and_fill(Y, np.repeat(root_known[:, None], 3, axis=1), step=step)
     smoothed = ground.copy()
     smoothed[:, [0, 2]] = S[:, :2]
     return smoothed, wrap(S[:, 2])

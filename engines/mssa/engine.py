@@ -267,7 +267,7 @@ class MSSA(Engine):
         return view.restore(self._clean(view.observation))
 
     def _clean(self, observation: Observation) -> CleanResult:
-        skeleton = observation.skeleton
+        skeleton, step = observation.skeleton, observation.capture_step
         model = self.models_[self.params.space]
         mask = observation.channel_observed
         X = bridge_gaps(observation)
@@ -289,7 +289,7 @@ class MSSA(Engine):
         del sub
         p = self.params
         seen_at = observed[:, cols]
-        sigma2 = measurement_variance(u, seen_at)
+        sigma2 = measurement_variance(u, seen_at, step=step)
         var = sigma2 + p.noise_floor**2
         weight, welsch = (1.0 / var, p.welsch_p_sigma * np.sqrt(var)) if p.adaptive else (1.0, p.welsch_p_std)
         mu = None
@@ -313,7 +313,7 @@ class MSSA(Engine):
         filtered = result.z if p.output == "motion" else result.reconstruction
         out[:, cols] = filtered * model.scale + centre
         out[:, model.held] = np.median(Y[:, model.held], axis=0)
-        root_track = smooth_observed(X[:, :6], mask[:, :6])  # the root's position and rotation
+        root_track = smooth_observed(X[:, :6], mask[:, :6], step=step)  # the root's position and rotation
         if self.params.space == "angles":
             out[:, :6] = root_track
         weight = observed.astype(float)
@@ -329,6 +329,7 @@ class MSSA(Engine):
                 relative.reshape(F, -1, 3),
                 self.params.short_lever_cm,
                 self.params.angle_lever_cm,
+                step=step,
             )
             if body is None:
                 world = out.reshape(F, -1, 3) + root_joint[:, None]

@@ -348,6 +348,27 @@ def test_mean_square_noise_estimate_for_heavy_tailed_noise():
         np.testing.assert_allclose(measurement_variance(gauss, seen, robust=robust), 4.0, rtol=0.1)
 
 
+@pytest.mark.parametrize("fps, step", [(30, 4.0), (60, 2.0), (25, 4.8)])
+def test_the_noise_of_a_take_resampled_up_is_measured_on_its_captured_frames(fps, step):
+    """Linear interpolation hides the noise from the frames between the captured ones:
+    on all frames the estimate is next to none; on the captured ones (``step`` apart) it
+    is the capture's (exactly at a whole step; at 4.8 the nearest frames hold a little
+    interpolation), returned per frame of the resampled channels, ``step`` times it."""
+    from workbench.engine.smoothing import measurement_variance
+
+    rng = np.random.default_rng(7)
+    frames = np.arange(1000)
+    captured = 30.0 * np.sin(2 * np.pi * 0.7 * frames / fps)[:, None] + rng.normal(scale=2.0, size=(1000, 3))
+    t = np.arange(0.0, 999 + 1e-9, 1.0 / step)
+    resampled = np.column_stack([np.interp(t, frames, captured[:, c]) for c in range(3)])
+    seen = np.ones(resampled.shape, bool)
+    assert np.all(measurement_variance(resampled, seen) < 0.01)
+    per_captured = measurement_variance(resampled, seen, step=step) / step
+    if step % 1 == 0:
+        np.testing.assert_allclose(per_captured, measurement_variance(captured, np.ones(captured.shape, bool)))
+    np.testing.assert_allclose(per_captured, 4.0, rtol=0.25)
+
+
 @pytest.mark.parametrize(
     "corruption, quieter",
     [("angular:0.5", True), ("angular:0.1", True), ("spatial:1", False), ("angular:0.5+outliers:0.05", False)],

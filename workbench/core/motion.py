@@ -259,12 +259,21 @@ class Observation:
     ``observed[f, j]`` False means joint j's angles at frame f are missing (NaN in
     ``motion``), and its translation if it is a translated joint; the root position is
     missing where the root joint is. The ground truth is not part of this type.
+
+    ``capture_step``: frames of ``motion`` per captured frame. 1 for a take as captured;
+    above 1 for one resampled up from its capture rate by linear interpolation (an
+    engine's view of a 30-fps take at 120 fps has 4): its frames between the captured
+    ones are interpolated, not measured, so noise is measured on the captured ones
+    (:func:`workbench.engine.smoothing.measurement_variance`).
     """
 
     motion: Motion
     observed: np.ndarray = field(default=None)  # type: ignore[assignment]
+    capture_step: float = 1.0
 
     def __post_init__(self) -> None:
+        if not self.capture_step >= 1.0:
+            raise ValueError(f"capture_step must be at least 1 (frames per captured frame), got {self.capture_step}")
         F, J = self.motion.n_frames, self.motion.skeleton.n_joints
         obs = np.ones((F, J), bool) if self.observed is None else np.array(self.observed, dtype=bool)
         if obs.shape != (F, J):

@@ -36,7 +36,9 @@ The position engines' parameters, shared by the helpers below :func:`smooth_join
 ``skeleton`` the take's skeleton; ``channels`` (F, D) its channel matrix, gaps bridged
 (degrees and file units); ``observed`` (F, J) the joints' observed mask; ``positions``
 (F, J, 3) joint positions by FK of the channels, in file units (only differences between
-joints are used, so any common offset, e.g. the root's, may be taken off).
+joints are used, so any common offset, e.g. the root's, may be taken off); ``step`` its
+frames per captured frame (:attr:`workbench.core.motion.Observation.capture_step`; noise
+is measured on the captured frames, :func:`measurement_variance`), 1 by default.
 """
 
 from __future__ import annotations
@@ -213,11 +215,19 @@ def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.nda
     return out
 
 
-def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = True) -> np.ndarray:
+def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = True, *, step: float = 1.0) -> np.ndarray:
     """Per-channel white-noise variance from the second differences over fully observed triples.
 
     For white noise of variance r the second difference has variance 6 r, and a smooth
     120 fps signal contributes little to it.
+
+    Channels resampled up from their capture (``step`` > 1) are measured on the frames
+    nearest the captured ones (every ``step``-th): the frames between are interpolated,
+    and the second differences of a line are 0, so all frames would show next to no
+    noise. The variance returned is then per frame of ``Y``, ``step`` times the captured
+    frames': taken as independent measurements, ``step`` frames of ``Y`` then carry the
+    information of one captured frame (the interpolated noise's spectrum below the
+    capture's Nyquist frequency, where a smoother's cut lies, is that flat level).
 
     Parameters
     ----------
@@ -231,6 +241,9 @@ def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = Tru
         low for noise with heavier tails (joint positions under angle noise: half the
         true variance on some rows). False: from their mean square, right for any noise,
         but it counts the signal's accelerations and every outlier.
+    step : float
+        Frames of ``Y`` per captured frame (:attr:`workbench.core.motion.Observation.capture_step`),
+        at least 1.
 
     Returns
     -------
@@ -239,6 +252,9 @@ def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = Tru
         Channels with no observed triple (all of them when F < 3) get :data:`R_FLOOR`.
     """
     Y = np.asarray(Y, float)
+    if step > 1.0:
+        captured = np.unique(np.round(np.arange(0.0, Y.shape[0] - 1 + 1e-9, step)).astype(int))
+        return step * measurement_variance(Y[captured], np.asarray(observed)[captured], robust)
     F, D = Y.shape
     if F < 3:
         return np.full(D, R_FLOOR)
@@ -314,7 +330,7 @@ def smoothing_ratio(Y: np.ndarray, r: np.ndarray, observed_fraction: np.ndarray 
     return LAMBDA_GRID[np.argmin(risk, axis=0)]
 
 
-def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def estimate_noise(Y: np.ndarray, observed: np.ndarray, *, step: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Process and measurement variances ``(q, r)`` of every channel of a bridged channel matrix.
 
     ``r`` from :func:`measurement_variance`, ``q = r / lambda`` with ``lambda`` from
@@ -326,6 +342,8 @@ def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.
         A channel matrix with its gaps interpolated, in its units (degrees, file units).
     observed : ndarray of bool, shape (F, D)
         True where ``Y`` is observed.
+    step : float
+        Frames of ``Y`` per captured frame (:func:`measurement_variance`).
 
     Returns
     -------
@@ -335,12 +353,12 @@ def estimate_noise(Y: np.ndarray, observed: np.ndarray) -> tuple[np.ndarray, np.
         Measurement variances, in channel units^2.
     """
     observed = np.asarray(observed, bool)
-    r = measurement_variance(Y, observed)
+    r = measurement_variance(Y, observed, step=step)
     lam = smoothing_ratio(Y, r, observed.mean(axis=0))
     return r / lam, r
 
 
-def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+def smooth_and_fill(Y: np.ndarray, observed: np.ndarray, *, step: float = 1.0) -> np.ndarray:
     """Channels smoothed by :func:`cv_smooth` at the noise they show, gaps filled by the smoother.
 
     The noise variances are those :func:`estimate_noise` finds in the ``observed``
@@ -353,6 +371,8 @@ def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
         Channels, in their units (degrees, file units); anything where missing.
     observed : ndarray of bool, shape (F, D)
         True where ``Y`` is observed.
+    step : float
+        Frames of ``Y`` per captured frame (:func:`measurement_variance`).
 
     Returns
     -------
@@ -360,15 +380,15 @@ def smooth_and_fill(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
         A new array; 0 in a column with no observation.
     """
     bridged = interpolate_gaps(Y, observed)
-    return cv_smooth(bridged, observed, *estimate_noise(bridged, observed))
+    return cv_smooth(bridged, observed, *estimate_noise(bridged, observed, step=step))
 
 
-def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+def smooth_observed(Y: np.ndarray, observed: np.ndarray, *, step: float = 1.0) -> np.ndarray:
     """:func:`smooth_and_fill` but bridged linearly across the gaps (between the smoothed ends).
 
     Parameters
     ----------
-    Y, observed
+    Y, observed, step
         As in :func:`smooth_and_fill`.
 
     Returns
@@ -378,11 +398,16 @@ def smooth_observed(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
         smoothed samples around it, the nearest one held before a column's first and
         after its last observation.
     """
-    return interpolate_gaps(smooth_and_fill(Y, observed), observed)
+    return interpolate_gaps(smooth_and_fill(Y, observed, step=step), observed)
 
 
 def smooth_joint_angles(
-    channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, smoothed: np.ndarray | None = None
+    channels: np.ndarray,
+    observed: np.ndarray,
+    joints: np.ndarray,
+    smoothed: np.ndarray | None = None,
+    *,
+    step: float = 1.0,
 ) -> np.ndarray:
     """A copy of a channel matrix with the angles of ``joints`` smoothed where they are observed.
 
@@ -401,6 +426,8 @@ def smooth_joint_angles(
         The joints whose angles to smooth.
     smoothed : ndarray, shape (F, D), optional
         The channels' :func:`smooth_and_fill`, when the caller has it.
+    step : float
+        Frames per captured frame (:func:`measurement_variance`).
 
     Returns
     -------
@@ -411,7 +438,7 @@ def smooth_joint_angles(
     cols = joint_angle_columns(joints)
     mask = np.repeat(np.asarray(observed, bool)[:, joints], 3, axis=1)
     out[:, cols] = interpolate_gaps(
-        smooth_and_fill(out[:, cols], mask) if smoothed is None else smoothed[:, cols], mask
+        smooth_and_fill(out[:, cols], mask, step=step) if smoothed is None else smoothed[:, cols], mask
     )
     return out
 
@@ -423,17 +450,17 @@ OUTLIER_VARIANCE_RATIO = 3.0
 
 
 def angle_noise(
-    skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, robust: bool = True
+    skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, robust: bool = True, *, step: float = 1.0
 ) -> np.ndarray:
     """The noise of the observed angles of ``joints`` as the descendant each is aimed at sees it.
 
-    Their variance in rad^2 (:func:`measurement_variance`, the mean over a joint's three
-    angles) times the lever^2: the squared offset of the joint's first aimed descendant
-    (:attr:`workbench.core.skeleton.Skeleton.aimed_descendants`).
+    Their variance in rad^2 per captured sample (:func:`measurement_variance`, the mean
+    over a joint's three angles) times the lever^2: the squared offset of the joint's
+    first aimed descendant (:attr:`workbench.core.skeleton.Skeleton.aimed_descendants`).
 
     Parameters
     ----------
-    skeleton, channels, observed
+    skeleton, channels, observed, step
         The take: see *The position engines' parameters* in the module docstring.
     joints : ndarray of int, shape (n,)
         Joints each aimed at one descendant.
@@ -453,18 +480,19 @@ def angle_noise(
     children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
     seen = np.repeat(observed[:, joints], 3, axis=1)  # (F, 3n)
     lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[children] ** 2, axis=1)
-    variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, robust)
+    variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, robust, step=step) / step
     return variance.reshape(len(joints), 3).mean(axis=1) * lever2
 
 
 def angle_and_position_noise(
-    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints: np.ndarray
+    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints: np.ndarray, step: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The noise of ``joints`` as their descendants see it, through the angles and the positions.
+    """The noise of ``joints`` as their descendants see it, through the angles and the positions,
+    per captured sample.
 
     Parameters
     ----------
-    skeleton, channels, observed, positions
+    skeleton, channels, observed, positions, step
         The take: see *The position engines' parameters* in the module docstring.
     joints : ndarray of int, shape (n,)
         Joints each aimed at one descendant.
@@ -484,14 +512,14 @@ def angle_and_position_noise(
     relative = (positions[:, children] - positions[:, joints]).reshape(len(positions), 3 * n)
     both = np.repeat(observed[:, joints] & observed[:, children], 3, axis=1)
     return (
-        angle_noise(skeleton, channels, observed, joints),
-        angle_noise(skeleton, channels, observed, joints, False),
-        measurement_variance(relative, both).reshape(n, 3).mean(axis=1),
+        angle_noise(skeleton, channels, observed, joints, step=step),
+        angle_noise(skeleton, channels, observed, joints, False, step=step),
+        measurement_variance(relative, both, step=step).reshape(n, 3).mean(axis=1) / step,
     )
 
 
 def angles_are_quieter(
-    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints
+    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints, step: float = 1.0
 ) -> np.ndarray:
     """Which of ``joints`` are better told by their observed angles than by the observed positions.
 
@@ -504,7 +532,7 @@ def angles_are_quieter(
 
     Parameters
     ----------
-    skeleton, channels, observed, positions
+    skeleton, channels, observed, positions, step
         The take: see *The position engines' parameters* in the module docstring.
     joints : array_like of int, shape (n,)
         Joints each aimed at one descendant.
@@ -517,7 +545,7 @@ def angles_are_quieter(
     joints = np.asarray(joints, int)
     if not joints.size:
         return np.zeros(0, bool)
-    angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints)
+    angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
     return (angle < position) & (heavy < OUTLIER_VARIANCE_RATIO * angle)
 
 
@@ -543,7 +571,12 @@ def _measured_joints(skeleton, observed: np.ndarray, short_lever_cm: float) -> n
 
 
 def angles_bridge_holes(
-    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float
+    skeleton,
+    channels: np.ndarray,
+    observed: np.ndarray,
+    positions: np.ndarray,
+    short_lever_cm: float,
+    step: float = 1.0,
 ) -> bool:
     """Whether a take's holes are better bridged by the smoother of their angles than from positions.
 
@@ -559,7 +592,7 @@ def angles_bridge_holes(
 
     Parameters
     ----------
-    skeleton, channels, observed, positions
+    skeleton, channels, observed, positions, step
         The take: see *The position engines' parameters* in the module docstring.
     short_lever_cm : float
         Joints whose aimed descendants all lie within this many cm are not measured.
@@ -573,7 +606,7 @@ def angles_bridge_holes(
     if not joints.size:
         return False
     angle, heavy, position = (
-        np.median(x) for x in angle_and_position_noise(skeleton, channels, observed, positions, joints)
+        np.median(x) for x in angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
     )
     floor = (HOLE_NOISE_CM / skeleton.unit_cm) ** 2
     outliers = heavy > max(OUTLIER_VARIANCE_RATIO * angle, floor)
@@ -618,6 +651,7 @@ def ik_reference(
     short_lever_cm: float,
     angle_lever_cm: float,
     smoothed: np.ndarray | None = None,
+    step: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What IK keeps of an observation when an engine has cleaned its joint positions.
 
@@ -627,9 +661,8 @@ def ik_reference(
 
     Parameters
     ----------
-    skeleton, channels, observed, positions
+    skeleton, channels, observed, positions, step
         The take: see *The position engines' parameters* in the module docstring.
-        joints are used, so any common offset, e.g. the root's, may be taken off.
     short_lever_cm : float
         The joints whose aimed descendants all lie within this many cm and that are
         observed somewhere are kept at the reference in every frame (a few mm of
@@ -639,7 +672,7 @@ def ik_reference(
         where they are observed, in takes where their angles are quieter than the
         positions (:func:`angles_are_quieter`).
     smoothed : ndarray, shape (F, D), optional
-        The channels' :func:`smooth_and_fill`, when the caller has it.
+        The channels' :func:`smooth_and_fill`, when the caller has it (at ``step``).
 
     Returns
     -------
@@ -655,7 +688,7 @@ def ik_reference(
         throughout for the other joints.
     """
     short = short_lever_joints(skeleton, short_lever_cm, observed)
-    reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed)
+    reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed, step=step)
     reference = reference[:, angle_slice(skeleton)].reshape(positions.shape)
     lever = np.array(
         [
@@ -665,7 +698,7 @@ def ik_reference(
         ],
         int,
     )
-    quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever)]
+    quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever, step)]
     frames = np.zeros(observed.shape, bool)
     frames[:, quiet] = observed[:, quiet]
     return reference, short, frames

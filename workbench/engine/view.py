@@ -16,7 +16,10 @@ puts the result back (:class:`ModelView`):
 - **Rate** (:func:`resample`): channels are resampled linearly in time (angles
   unwrapped) to the model's rate, and the result back to the take's frames. A resampled
   frame is observed where both take frames around it are. At a whole ratio (30 to 120
-  fps) every take frame is a model frame, so nothing observed is blurred.
+  fps) every take frame is a model frame, so nothing observed is blurred. The frames in
+  between are interpolated, not measured: the view's ``capture_step`` (4 from 30 to 120
+  fps) has the engines measure the take's noise on the captured frames (an estimate from
+  all of them would find next to none, and a 30-fps take would not be smoothed at all).
 
 Units: frame rates in frames per second; diagnostics whose names end in ``_frames``
 count frames and are rescaled to the take's frames on the way back.
@@ -167,7 +170,8 @@ class ModelView:
     source : Observation
         The take as given.
     observation : Observation
-        The take in its body view (:func:`body_skeleton`) at the model's rate ``fps``.
+        The take in its body view (:func:`body_skeleton`) at the model's rate ``fps``;
+        resampled up, its ``capture_step`` says how many of its frames a captured one spans.
     bridged : Motion or None
         The take with its gaps bridged (:meth:`Observation.bridged`), made once where a
         way needs it (resampling there, the joints above the body root back); else None.
@@ -187,13 +191,14 @@ class ModelView:
         bridged = source.bridged() if interpolated or skeleton.body_root else None
         observed = source.observed[:, body_joints(skeleton)].copy()
         observed[:, 0] = source.observed[:, list(skeleton.root_chain)].all(axis=1)
+        step = max(source.capture_step * fps / source.motion.fps, 1.0) if interpolated else source.capture_step
         if interpolated:
             t = _frame_times(source.n_frames, source.motion.fps, fps)
             observed = _resample_frames(observed.astype(float), t) > 1 - 1e-9  # both frames around observed
             view = resample(to_body(bridged, body), fps)
         else:
             view = resample(to_body(source.motion, body), fps)  # at most a new rate for one frame
-        return cls(source, Observation(view, observed), bridged)
+        return cls(source, Observation(view, observed, step), bridged)
 
     def joint(self, j: int) -> int:
         """The view's index of the take's joint ``j`` (the body root or below it)."""
