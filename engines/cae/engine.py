@@ -404,7 +404,7 @@ class ConvAutoencoderEngine(Engine):
         P = joint_positions(skeleton, bridged[:, :3], ref)
         image_positions = imaging.positions(P)
         theta = imaging.heading(image_positions, local_rotations(skeleton, ref, [0])[:, 0])
-        short, frames, ik_angles = self._ik_reference(observation, bridged, smoothed, P, ref)
+        ik_angles, ik_options = self._ik_reference(observation, bridged, smoothed, P, ref)
         ik_root = bridged[:, :3].copy()
         del bridged, smoothed, ref  # done with: a long take's are 50 MB each
         ground = image_positions[:, 0] * np.array([1.0, 0.0, 1.0])
@@ -438,9 +438,7 @@ class ConvAutoencoderEngine(Engine):
                 out = self.blend_short_holes(out, mask, step)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         del image, net_out, out
-        root, angles, translations = imaging.solve(
-            target, ik_root, ik_angles, reference_joints=short, reference_frames=frames
-        )
+        root, angles, translations = imaging.solve(target, ik_root, ik_angles, **ik_options)
         del target, ik_angles
         channels = rewrap_angles(channel_matrix(root, angles, translations), observation, copy=False)
         del angles
@@ -474,25 +472,22 @@ class ConvAutoencoderEngine(Engine):
         smoothed: np.ndarray | None,
         positions: np.ndarray,
         ref: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """What IK keeps of the observation: with ``anchor``
-        :func:`workbench.engine.smoothing.ik_reference` (its joints, frames and smoothed reference
-        angles; ``smoothed``: the channels' :func:`workbench.engine.smoothing.smooth_and_fill`);
-        without it the bridged observation's reference angles ``ref``, and the short levers
-        in every frame."""
+    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """What IK keeps of the observation: the reference angles (F, J, 3) and the
+        reference's other arguments of :func:`~workbench.core.kinematics.inverse_kinematics`.
+        With ``anchor`` :func:`workbench.engine.smoothing.ik_reference`'s (its smoothed
+        reference angles, joints and frames; ``smoothed``: the channels'
+        :func:`workbench.engine.smoothing.smooth_and_fill`); without it the bridged
+        observation's angles ``ref``, and the short levers in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
         p = self.params
         if not p.anchor:
-            return (
-                short_lever_joints(skeleton, p.short_lever_cm, observed),
-                np.zeros(observed.shape, bool),
-                ref,
-            )
+            return ref, {"reference_joints": short_lever_joints(skeleton, p.short_lever_cm, observed)}
         step = observation.capture_step
-        ref, short, frames = ik_reference(
+        ref, short, frames, measured = ik_reference(
             skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed, step
         )
-        return short, frames, ref
+        return ref, {"reference_joints": short, "reference_frames": frames, "reference_measured": measured}
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
         """The network's completion ``out`` (F, H) smoothed over time by a Gaussian of std

@@ -322,7 +322,7 @@ class MSSA(Engine):
         diagnostics = {}
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
-            reference, short, frames = ik_reference(
+            reference, short, frames, measured = ik_reference(
                 skeleton,
                 X,
                 observation.observed,
@@ -331,17 +331,14 @@ class MSSA(Engine):
                 self.params.angle_lever_cm,
                 step=step,
             )
+            ik = {"reference_joints": short, "reference_frames": frames, "reference_measured": measured}
             if body is None:
                 world = out.reshape(F, -1, 3) + root_joint[:, None]
                 diagnostics["raw_positions"] = world
-                root, angles, translations = inverse_kinematics(
-                    skeleton, world, reference, reference_joints=short, reference_frames=frames
-                )
+                root, angles, translations = inverse_kinematics(skeleton, world, reference, **ik)
             else:  # canonical targets; the joints the take has keep their observed weights
                 canonical = out.reshape(F, -1, 3) + (root_joint * body.scale)[:, None]
-                root, angles, translations = body.solve(
-                    canonical, root_track[:, :3], reference, reference_joints=short, reference_frames=frames
-                )
+                root, angles, translations = body.solve(canonical, root_track[:, :3], reference, **ik)
                 weight = _take_weights(body, weight, observation.observed)
             out = channel_matrix(root, angles, translations)
         raw = observation.motion.channels  # (a copy: made only now, not held through the filter)

@@ -81,3 +81,28 @@ def test_vectors_to_rotation_and_kabsch():
 def test_bad_order_is_a_clear_error():
     with pytest.raises(ValueError, match="permutation"):
         rot.euler_to_matrix(np.zeros(3), "XXY")
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@given(
+    a=arrays(np.float64, (5, 3), elements=st.floats(-85.0, 85.0)),
+    v=arrays(np.float64, (5, 3), elements=st.floats(-1, 1)),
+)
+@settings(max_examples=20, deadline=None)
+def test_euler_rates_are_the_derivative_of_the_angles_under_a_turn_about_an_axis(order, a, v):
+    """The rates of the Euler angles as their rotation turns about an axis of its own
+    frame, against a central difference (middle angles away from gimbal lock)."""
+    axis = v + np.array([1e-3, 0.0, 0.0])  # never the zero vector
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    h = 1e-6
+
+    def turned(phi):
+        turn = Rotation.from_rotvec(phi * axis).as_matrix()
+        return rot.nearest_euler(rot.matrix_to_euler(rot.euler_to_matrix(a, order) @ turn, order), a)
+
+    np.testing.assert_allclose(rot.euler_rates(a, order, axis), (turned(h) - turned(-h)) / (2 * h), atol=1e-3)
+
+
+def test_euler_rates_stay_finite_at_gimbal_lock():
+    rates = rot.euler_rates(np.array([[10.0, 90.0, 0.0], [10.0, 89.9, 0.0]]), "ZXY", np.array([0.0, 0.0, 1.0]))
+    assert np.isfinite(rates).all() and np.abs(rates[1]).max() > 1e3  # near lock: fast

@@ -97,6 +97,63 @@ def alternative_euler(angles_deg: np.ndarray) -> np.ndarray:
     return np.stack([a[..., 0] + 180.0, 180.0 - a[..., 1], a[..., 2] + 180.0], axis=-1)
 
 
+def euler_rates(angles_deg: np.ndarray, order: str, axis: np.ndarray) -> np.ndarray:
+    """How fast Euler angles change as their rotation turns about an axis of its own frame.
+
+    For ``R(phi) = R @ T(axis, phi)`` (a turn by ``phi`` about ``axis``, in the frame ``R``
+    maps from), the derivative of ``R``'s Euler angles ``angles_deg`` in ``order`` at
+    ``phi = 0``. With ``R = R_a(a) R_b(b) R_c(c)`` the frame's angular velocity is
+    ``a' R_c' R_b' e_a + b' R_c' e_b + c' e_c``, solved for the rates (Cramer's rule). At
+    gimbal lock (middle angle +-90) the rates are unbounded; there they are large, not
+    infinite.
+
+    Parameters
+    ----------
+    angles_deg : ndarray, shape (..., 3)
+        Euler angles in degrees, in ``order`` (any of a rotation's triples).
+    order : str
+        A permutation of "XYZ".
+    axis : ndarray, shape (3,) or (..., 3)
+        A unit vector in the rotation's own frame.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The three angles' rates, in degrees per radian of turn.
+    """
+    first, middle, last = _check_order(order)
+    a = np.deg2rad(np.asarray(angles_deg, dtype=float))
+    eye = np.eye(3)
+    columns = (
+        _turned(_turned(eye[first], middle, -a[..., 1]), last, -a[..., 2]),
+        _turned(eye[middle], last, -a[..., 2]),
+        np.broadcast_to(eye[last], a.shape),
+    )
+    omega = np.broadcast_to(axis, a.shape)
+    det = np.einsum("...i,...i->...", columns[0], np.cross(columns[1], columns[2]))
+    det = np.where(det < 0, -1.0, 1.0) * np.maximum(np.abs(det), 1e-12)  # finite at lock exactly
+    rates = np.stack(
+        [
+            np.einsum("...i,...i->...", omega, np.cross(columns[1], columns[2])),
+            np.einsum("...i,...i->...", columns[0], np.cross(omega, columns[2])),
+            np.einsum("...i,...i->...", columns[0], np.cross(columns[1], omega)),
+        ],
+        axis=-1,
+    )
+    return np.rad2deg(rates / det[..., None])
+
+
+def _turned(v: np.ndarray, axis: int, angle_rad: np.ndarray) -> np.ndarray:
+    """Vectors ``v`` (3,) or (..., 3) turned by ``angle_rad`` (...) about coordinate ``axis``."""
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    v = np.broadcast_to(v, np.shape(angle_rad) + (3,))
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    out = np.array(v)
+    out[..., i] = c * v[..., i] - s * v[..., j]
+    out[..., j] = s * v[..., i] + c * v[..., j]
+    return out
+
+
 def wrap_deg(angles_deg: np.ndarray) -> np.ndarray:
     """Wrap angles into [-180, 180)."""
     return (np.asarray(angles_deg) + 180.0) % 360.0 - 180.0

@@ -652,12 +652,13 @@ def ik_reference(
     angle_lever_cm: float,
     smoothed: np.ndarray | None = None,
     step: float = 1.0,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """What IK keeps of an observation when an engine has cleaned its joint positions.
 
     For :func:`workbench.core.kinematics.inverse_kinematics`: the reference angles, the
-    joints it keeps at the reference in every frame, and the frames in which some more
-    joints keep it.
+    joints it keeps at the reference in every frame, the frames in which some more
+    joints keep it, and the frames in which a joint aimed at one direction takes the
+    twist whose Euler angles are nearest the reference's.
 
     Parameters
     ----------
@@ -686,6 +687,16 @@ def ik_reference(
     frames : ndarray of bool, shape (F, J)
         The frames in which each joint keeps the reference (``angle_lever_cm``); False
         throughout for the other joints.
+    measured : ndarray of bool, shape (F, J)
+        IK's ``reference_measured``: where the take's noise is in its angles, their
+        observed frames (there the reference is the observation smoothed, its Euler
+        angles noisy each alone, and the twist nearest them is the likeliest); False
+        throughout where the noise is in the positions (the median over the joints aimed
+        at one descendant beyond ``short_lever_cm`` of :func:`angle_and_position_noise`),
+        whose angles, solved from them, carry it as a turn of the bone, not of its twist.
+        Validation, 1 seed, the turn in every observed frame against the smallest rotation:
+        ``angular:0.5`` on Bandai, ``cae`` 3.70 -> 3.52 degrees, ``mssa:space=positions``
+        3.97 -> 3.74; but ``spatial:0.5``, ``mssa:space=positions`` 2.57 -> 2.72.
     """
     short = short_lever_joints(skeleton, short_lever_cm, observed)
     reference = smooth_joint_angles(channels, observed, angle_joints(skeleton), smoothed, step=step)
@@ -701,4 +712,8 @@ def ik_reference(
     quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever, step)]
     frames = np.zeros(observed.shape, bool)
     frames[:, quiet] = observed[:, quiet]
-    return reference, short, frames
+    joints, noise_in_angles = _measured_joints(skeleton, observed, short_lever_cm), False
+    if joints.size:
+        angle, _, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
+        noise_in_angles = bool(np.median(angle) <= np.median(position))
+    return reference, short, frames, observed & noise_in_angles
