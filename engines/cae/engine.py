@@ -32,17 +32,12 @@ network completes the image of a take and IK turns it back into angles (the pape
    within ``angle_lever_cm`` (a toe carries the whole leg's noise). ``anchor=false,output_sigma_frames=0``:
    the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
-Every noise estimate above is measured on the take's captured frames: a 30-fps take is seen at the
-network's 120 fps (:mod:`workbench.engine.view`), and three frames in four are interpolated
-(:attr:`workbench.core.motion.Observation.capture_step`). Measured on all of them, a noisy 30-fps take
-showed next to no noise and kept it (Bandai validation, ``angular:0.5``: 0.93 of the noisy take's
-angle error, now 0.74).
-
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
 them as known entries (in a first pass's body frame where the root is missing); the network's miss
 there is added in full, so they are met as far as the bone lengths allow.
 
-History and results: docs/engines/cae.md.
+Every noise estimate above is measured on the take's captured frames (a 30-fps take is seen at 120
+fps: :attr:`workbench.core.motion.Observation.capture_step`). History and results: docs/engines/cae.md.
 """
 
 from __future__ import annotations

@@ -31,9 +31,8 @@ Beyond the paper (chosen on validation clips of the training subjects; its exact
 prior_weight=0.1,energy_kept=0.99``, the last after ``workbench train``): ``adaptive``, each channel's
 noise sigma from the observation (:func:`workbench.engine.smoothing.measurement_variance`), weights
 1 / (sigma^2 + ``noise_floor``^2), Welsch scale ``welsch_p_sigma`` times its root, so clean data are
-kept and the outlier threshold follows the noise (measured on the captured frames of a take seen at a
-higher rate: universal bases see a 30-fps take at 120 fps); ``solver="cg"``, each IRLS round solved
-exactly (the paper's alternating updates stop far from the minimum); ``prior_weight=3``,
+kept and the outlier threshold follows the noise; ``solver="cg"``, each IRLS round solved exactly
+(the paper's alternating updates stop far from the minimum); ``prior_weight=3``,
 ``energy_kept=0.999``; ``smoothness=1``, the ``kalman`` smoother's prior added (better than either
 term alone); ``refit_prior_weight=1``, a last solve at lambda 1 with the outliers fixed (biasing kept
 samples less); ``start_median_frames=5``, a running-median start (the objective is not convex).
