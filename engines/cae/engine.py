@@ -471,7 +471,7 @@ class ConvAutoencoderEngine(Engine):
         """What IK keeps of the observation: the reference angles (F, J, 3) and the
         reference's other arguments of :func:`~workbench.core.kinematics.inverse_kinematics`.
         With ``anchor`` :func:`workbench.engine.smoothing.ik_reference`'s (its smoothed
-        reference angles, joints and frames; ``smoothed``: the channels'
+        reference angles, joints, frames and measured frames; ``smoothed``: the channels'
         :func:`workbench.engine.smoothing.smooth_and_fill`); without it the bridged
         observation's angles ``ref``, and the short levers in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
@@ -581,11 +581,10 @@ def anchored_trajectory(
     """The root's floor points (F, 3) and headings (F,) radians where ``root_known`` (F,),
     smoothed by the ``kalman`` engine's constant-velocity smoother with the noise levels
     it estimates from them (on the captured frames, ``step`` apart), and its fill where
-    the root is unknown. The image is
-    root-relative, so a noisy root would otherwise shake the whole body: every joint's
-    rows would carry the root's noise, and the decoded pose would be put back on the
-    noisy track. Across a gap inside the take the floor path is
-    :data:`SMOOTHER_PATH_SHARE` of this fill and the rest the network's."""
+    the root is unknown. The image is root-relative, so a noisy root would otherwise
+    shake the whole body: every joint's rows would carry the root's noise, and the
+    decoded pose would be put back on the noisy track. Across a gap inside the take the
+    floor path is :data:`SMOOTHER_PATH_SHARE` of this fill and the rest the network's."""
     Y = np.column_stack([ground[:, 0], ground[:, 2], np.unwrap(theta)])
     S = smooth_and_fill(Y, np.repeat(root_known[:, None], 3, axis=1), step=step)
     smoothed = ground.copy()

@@ -103,7 +103,7 @@ def euler_rates(angles_deg: np.ndarray, order: str, axis: np.ndarray) -> np.ndar
     For ``R(phi) = R @ T(axis, phi)`` (a turn by ``phi`` about ``axis``, in the frame ``R``
     maps from), the derivative of ``R``'s Euler angles ``angles_deg`` in ``order`` at
     ``phi = 0``. With ``R = R_a(a) R_b(b) R_c(c)`` the frame's angular velocity is
-    ``a' R_c' R_b' e_a + b' R_c' e_b + c' e_c``, solved for the rates (Cramer's rule). At
+    ``da R_c^T R_b^T e_a + db R_c^T e_b + dc e_c``, solved for the rates (Cramer's rule). At
     gimbal lock (middle angle +-90) the rates are unbounded; there they are large, not
     infinite.
 
