@@ -470,19 +470,15 @@ class ConvAutoencoderEngine(Engine):
     ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         """What IK keeps of the observation: the reference angles (F, J, 3) and the
         reference's other arguments of :func:`~workbench.core.kinematics.inverse_kinematics`.
-        With ``anchor`` :func:`workbench.engine.smoothing.ik_reference`'s (its smoothed
-        reference angles, joints, frames and measured frames; ``smoothed``: the channels'
-        :func:`workbench.engine.smoothing.smooth_and_fill`); without it the bridged
-        observation's angles ``ref``, and the short levers in every frame."""
+        With ``anchor`` :func:`workbench.engine.smoothing.ik_reference`'s (``smoothed``:
+        the channels' :func:`workbench.engine.smoothing.smooth_and_fill`); without it the
+        bridged observation's angles ``ref``, and the short levers in every frame."""
         skeleton, observed = observation.skeleton, observation.observed
         p = self.params
         if not p.anchor:
             return ref, {"reference_joints": short_lever_joints(skeleton, p.short_lever_cm, observed)}
         step = observation.capture_step
-        ref, short, frames, measured = ik_reference(
-            skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed, step
-        )
-        return ref, {"reference_joints": short, "reference_frames": frames, "reference_measured": measured}
+        return ik_reference(skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed, step)
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
         """The network's completion ``out`` (F, H) smoothed over time by a Gaussian of std

@@ -322,7 +322,7 @@ class MSSA(Engine):
         diagnostics = {}
         if self.params.space == "positions":
             root_joint = root_track[:, :3] + skeleton.offsets[0]
-            reference, short, frames, measured = ik_reference(
+            reference, ik = ik_reference(
                 skeleton,
                 X,
                 observation.observed,
@@ -331,7 +331,6 @@ class MSSA(Engine):
                 self.params.angle_lever_cm,
                 step=step,
             )
-            ik = {"reference_joints": short, "reference_frames": frames, "reference_measured": measured}
             if body is None:
                 world = out.reshape(F, -1, 3) + root_joint[:, None]
                 diagnostics["raw_positions"] = world

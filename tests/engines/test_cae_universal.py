@@ -49,7 +49,7 @@ def test_unmapped_joints_keep_their_smoothed_angles_and_the_bones_their_lengths(
     p = universal.params
     channels = bridge_gaps(obs)
     positions, _ = forward_kinematics(take.skeleton, channels[:, :3], channels[:, 3:].reshape(150, -1, 3))
-    ref, _, _, _ = ik_reference(take.skeleton, channels, obs.observed, positions, p.short_lever_cm, p.angle_lever_cm)
+    ref, _ = ik_reference(take.skeleton, channels, obs.observed, positions, p.short_lever_cm, p.angle_lever_cm)
     kept = CanonicalBody(map_humanoid(take.skeleton)).kept_joints
     kept = kept[take.skeleton.has_rotation[kept] & (kept > 0)]
     assert {"lIndex1", "rThumb2", "leftEye"} <= {take.skeleton.names[j] for j in kept}

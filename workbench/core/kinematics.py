@@ -141,20 +141,6 @@ TURN_STEPS = 2
 TURN_TOLERANCE = 1e-3
 
 
-def _axis_rotations(axis: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """(F, 3, 3) rotations by ``phi`` (F,) radians about the unit ``axis`` (3,) or (F, 3)
-    (Rodrigues: cos I + sin [axis]x + (1 - cos) axis axis', by entries)."""
-    x, y, z = np.moveaxis(np.broadcast_to(axis, phi.shape + (3,)), -1, 0)
-    c, s = np.cos(phi), np.sin(phi)
-    k = 1.0 - c
-    R = np.empty(phi.shape + (3, 3))
-    R[..., 0, 0], R[..., 1, 1], R[..., 2, 2] = c + k * x * x, c + k * y * y, c + k * z * z
-    R[..., 0, 1], R[..., 1, 0] = k * x * y - s * z, k * x * y + s * z
-    R[..., 0, 2], R[..., 2, 0] = k * x * z + s * y, k * x * z - s * y
-    R[..., 1, 2], R[..., 2, 1] = k * y * z - s * x, k * y * z + s * x
-    return R
-
-
 def _nearest_euler_turn(
     R: np.ndarray, bone: np.ndarray, reference_deg: np.ndarray, order: str, frames: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -171,9 +157,13 @@ def _nearest_euler_turn(
     F = R.shape[0]
     axis = np.broadcast_to(bone / np.linalg.norm(bone, axis=-1, keepdims=True), (F, 3))
 
+    def turned(frames: np.ndarray, phi: np.ndarray) -> np.ndarray:
+        """R in ``frames`` turned by ``phi`` radians about the bone (as a quaternion)."""
+        half = 0.5 * phi[:, None]
+        return R[frames] @ quaternion_to_matrix(np.concatenate([np.cos(half), np.sin(half) * axis[frames]], axis=1))
+
     def euler(frames: np.ndarray, phi: np.ndarray) -> np.ndarray:
-        turned = R[frames] @ _axis_rotations(axis[frames], phi)
-        return nearest_euler(matrix_to_euler(turned, order), reference_deg[frames])
+        return nearest_euler(matrix_to_euler(turned(frames, phi), order), reference_deg[frames])
 
     e = nearest_euler(matrix_to_euler(R, order), reference_deg)
     phi = np.zeros(F)
@@ -192,9 +182,9 @@ def _nearest_euler_turn(
         better = np.einsum("fi,fi->f", miss_trial, miss_trial) < np.einsum("fi,fi->f", miss, miss)
         live = live[better]
         phi[live], e[live] = trial[better], e_trial[better]
-    turned = np.flatnonzero(phi)
+    moved = np.flatnonzero(phi)
     out = R.copy()
-    out[turned] = R[turned] @ _axis_rotations(axis[turned], phi[turned])
+    out[moved] = turned(moved, phi[moved])
     return out, e
 
 

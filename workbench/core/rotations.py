@@ -123,11 +123,11 @@ def euler_rates(angles_deg: np.ndarray, order: str, axis: np.ndarray) -> np.ndar
     """
     first, middle, last = _check_order(order)
     a = np.deg2rad(np.asarray(angles_deg, dtype=float))
-    eye = np.eye(3)
+    Rc_t = axis_rotation(last, -a[..., 2])  # R_c^T
     columns = (
-        _turned(_turned(eye[first], middle, -a[..., 1]), last, -a[..., 2]),
-        _turned(eye[middle], last, -a[..., 2]),
-        np.broadcast_to(eye[last], a.shape),
+        (Rc_t @ axis_rotation(middle, -a[..., 1]))[..., :, first],
+        Rc_t[..., :, middle],
+        np.broadcast_to(np.eye(3)[last], a.shape),
     )
     omega = np.broadcast_to(axis, a.shape)
     det = np.einsum("...i,...i->...", columns[0], np.cross(columns[1], columns[2]))
@@ -141,17 +141,6 @@ def euler_rates(angles_deg: np.ndarray, order: str, axis: np.ndarray) -> np.ndar
         axis=-1,
     )
     return np.rad2deg(rates / det[..., None])
-
-
-def _turned(v: np.ndarray, axis: int, angle_rad: np.ndarray) -> np.ndarray:
-    """Vectors ``v`` (3,) or (..., 3) turned by ``angle_rad`` (...) about coordinate ``axis``."""
-    c, s = np.cos(angle_rad), np.sin(angle_rad)
-    v = np.broadcast_to(v, np.shape(angle_rad) + (3,))
-    i, j = (axis + 1) % 3, (axis + 2) % 3
-    out = np.array(v)
-    out[..., i] = c * v[..., i] - s * v[..., j]
-    out[..., j] = s * v[..., i] + c * v[..., j]
-    return out
 
 
 def wrap_deg(angles_deg: np.ndarray) -> np.ndarray:

@@ -570,6 +570,19 @@ def _measured_joints(skeleton, observed: np.ndarray, short_lever_cm: float) -> n
     )
 
 
+def _take_noise(
+    skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, short_lever_cm: float, step: float
+) -> tuple[float, float, float] | None:
+    """A take's noise as its descendants see it: the medians over :func:`_measured_joints`
+    of :func:`angle_and_position_noise`'s (angle, heavy, position); None when no joint
+    can be measured."""
+    joints = _measured_joints(skeleton, observed, short_lever_cm)
+    if not joints.size:
+        return None
+    angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
+    return float(np.median(angle)), float(np.median(heavy)), float(np.median(position))
+
+
 def angles_bridge_holes(
     skeleton,
     channels: np.ndarray,
@@ -602,12 +615,10 @@ def angles_bridge_holes(
     bool
         False also when no joint can be measured.
     """
-    joints = _measured_joints(skeleton, observed, short_lever_cm)
-    if not joints.size:
+    noise = _take_noise(skeleton, channels, observed, positions, short_lever_cm, step)
+    if noise is None:
         return False
-    angle, heavy, position = (
-        np.median(x) for x in angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
-    )
+    angle, heavy, position = noise
     floor = (HOLE_NOISE_CM / skeleton.unit_cm) ** 2
     outliers = heavy > max(OUTLIER_VARIANCE_RATIO * angle, floor)
     return not (outliers or floor < position < angle)
@@ -652,13 +663,14 @@ def ik_reference(
     angle_lever_cm: float,
     smoothed: np.ndarray | None = None,
     step: float = 1.0,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """What IK keeps of an observation when an engine has cleaned its joint positions.
 
-    For :func:`workbench.core.kinematics.inverse_kinematics`: the reference angles, the
-    joints it keeps at the reference in every frame, the frames in which some more
-    joints keep it, and the frames in which a joint aimed at one direction takes the
-    twist whose Euler angles are nearest the reference's.
+    For :func:`workbench.core.kinematics.inverse_kinematics`: the reference angles, and
+    its keyword arguments that say how to keep them: the joints it keeps at the
+    reference in every frame, the frames in which some more joints keep it, and the
+    frames in which a joint aimed at one direction takes the twist whose Euler angles
+    are nearest the reference's.
 
     Parameters
     ----------
@@ -682,13 +694,12 @@ def ik_reference(
         :func:`workbench.core.motion.angle_joints` (all with a rotation but the root
         chain) smoothed by :func:`smooth_joint_angles`, the others' as in ``channels``.
         The twist about single-child bones and the leaves come from them.
-    short : ndarray of int, shape (k,)
-        The joints kept at the reference in every frame (``short_lever_cm``).
-    frames : ndarray of bool, shape (F, J)
-        The frames in which each joint keeps the reference (``angle_lever_cm``); False
-        throughout for the other joints.
-    measured : ndarray of bool, shape (F, J)
-        IK's ``reference_measured``: where the take's noise is in its angles, their
+    ik : dict
+        ``reference_joints``, ndarray of int (k,): the joints kept at the reference in
+        every frame (``short_lever_cm``). ``reference_frames``, ndarray of bool (F, J):
+        the frames in which each joint keeps the reference (``angle_lever_cm``); False
+        throughout for the other joints. ``reference_measured``, ndarray of bool (F, J):
+        where the take's noise is in its angles, their
         observed frames (there the reference is the observation smoothed, its Euler
         angles noisy each alone, and the twist nearest them is the likeliest); False
         throughout where the noise is in the positions (the median over the joints aimed
@@ -712,8 +723,10 @@ def ik_reference(
     quiet = lever[angles_are_quieter(skeleton, channels, observed, positions, lever, step)]
     frames = np.zeros(observed.shape, bool)
     frames[:, quiet] = observed[:, quiet]
-    joints, noise_in_angles = _measured_joints(skeleton, observed, short_lever_cm), False
-    if joints.size:
-        angle, _, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
-        noise_in_angles = bool(np.median(angle) <= np.median(position))
-    return reference, short, frames, observed & noise_in_angles
+    noise = _take_noise(skeleton, channels, observed, positions, short_lever_cm, step)
+    noise_in_angles = noise is not None and noise[0] <= noise[2]  # angle against position
+    return reference, {
+        "reference_joints": short,
+        "reference_frames": frames,
+        "reference_measured": observed & noise_in_angles,
+    }
