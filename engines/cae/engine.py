@@ -29,7 +29,7 @@ network completes the image of a take and IK turns it back into angles (the pape
    with ``anchor``, else the bridged observation) gives the twist, the leaves and the angles of joints
    within ``short_lever_cm`` of all their children (mm of error turn a 3-cm lever by tens of degrees);
    with ``anchor``, where the noise is in the angles, also those of joints aimed at one descendant
-   within ``angle_lever_cm`` (a toe carries the whole leg's noise). ``anchor=false,output_sigma_frames=0``:
+   within ``angle_lever_cm`` (feet to arms: a hand carries the arm's noise). ``anchor=false,output_sigma_frames=0``:
    the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
@@ -149,7 +149,7 @@ class TrainingParams:
     keep_observed: bool = False
     anchor: bool = True
     short_lever_cm: float = 5.0
-    angle_lever_cm: float = 13.5
+    angle_lever_cm: float = 30.0
     views: int = 3
     short_hole_frames: int = 6
     partial_hole_frames: int = 60

@@ -157,7 +157,7 @@ class MSSA(Engine):
         #: space "positions": joints aimed at one descendant within this many cm keep
         #: their smoothed observed angles where the noise is in the angles (as in
         #: ``cae``; :func:`workbench.engine.smoothing.ik_reference`); 0: none
-        angle_lever_cm: float = 13.5
+        angle_lever_cm: float = 30.0
         #: space "positions" only: filter the canonical humanoid's positions (root-relative,
         #: canonical cm; :mod:`workbench.engine.canonical`) instead of the take's joints, so
         #: the bases train on several skeletons together (at

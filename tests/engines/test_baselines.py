@@ -373,21 +373,26 @@ def test_the_noise_of_a_take_resampled_up_is_measured_on_its_captured_frames(fps
     "corruption, quieter",
     [("angular:0.5", True), ("angular:0.1", True), ("spatial:1", False), ("angular:0.5+outliers:0.05", False)],
 )
-def test_angles_are_quieter_where_the_noise_is_in_the_angles(corruption, quieter, clip):
+def test_angle_levers_keep_the_reference_where_the_noise_is_in_the_angles(corruption, quieter, clip):
     """The feet's observed angles tell their direction better than the toe's observed
     position does under angle noise (the toe carries the noise of the whole leg), not
-    under position noise, and not when the angles have outliers."""
+    under position noise, and not when the angles have outliers: IK keeps them at the
+    reference in their observed frames only then, and turns the bones towards the
+    reference's Euler angles wherever the noise is not in the positions."""
     from workbench.corruption import parse_corruption
     from workbench.engine.signal import bridge_gaps
-    from workbench.engine.smoothing import angles_are_quieter
+    from workbench.engine.smoothing import ik_reference
 
     sk = clip.skeleton
     feet = [sk.index("LeftFoot"), sk.index("RightFoot")]
     obs = parse_corruption(corruption).apply(clip, seed=0)
     bridged = bridge_gaps(obs)
     positions = obs.motion.with_channels(bridged).positions
-    assert angles_are_quieter(sk, bridged, obs.observed, positions, feet).tolist() == [quieter] * 2
-    assert angles_are_quieter(sk, bridged, obs.observed, positions, []).shape == (0,)
+    _, ik = ik_reference(sk, bridged, obs.observed, positions, short_lever_cm=5.0, angle_lever_cm=30.0)
+    np.testing.assert_array_equal(ik["reference_frames"][:, feet], obs.observed[:, feet] & quieter)
+    assert ik["reference_measured"].all() == corruption.startswith("angular")
+    _, ik = ik_reference(sk, bridged, obs.observed, positions, short_lever_cm=5.0, angle_lever_cm=10.0)
+    assert not ik["reference_frames"][:, feet].any()  # the feet's 13 cm are beyond the lever
 
 
 @pytest.mark.parametrize(
