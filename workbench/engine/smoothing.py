@@ -463,7 +463,7 @@ def angle_noise(
     skeleton, channels, observed, step
         The take: see *The position engines' parameters* in the module docstring.
     joints : ndarray of int, shape (n,)
-        Joints each aimed at one descendant.
+        Joints each aimed at a descendant at least (the first is measured).
     robust : bool
         False: from the mean square, which counts outliers (:func:`measurement_variance`).
 
@@ -495,7 +495,7 @@ def angle_and_position_noise(
     skeleton, channels, observed, positions, step
         The take: see *The position engines' parameters* in the module docstring.
     joints : ndarray of int, shape (n,)
-        Joints each aimed at one descendant.
+        Joints each aimed at a descendant at least (the first is measured).
 
     Returns
     -------
@@ -688,11 +688,14 @@ def ik_reference(
         observed somewhere are kept at the reference in every frame (a few mm of
         position error turn a 3-cm lever by tens of degrees).
     angle_lever_cm : float
-        The other joints aimed at one descendant within this many cm keep the reference
-        where they are observed, where their angles are quieter than the positions
-        (:func:`_quieter`), in takes whose noise is not in the positions
+        The other joints whose aimed descendants all lie within this many cm (but the
+        root chain's) keep the reference where they are observed, where their angles
+        are quieter than the positions (:func:`_quieter`, at their first aimed
+        descendant), in takes whose noise is not in the positions
         (:func:`_noise_is_in_positions`) and carries no outliers (the median of the
-        joints' :data:`OUTLIER_VARIANCE_RATIO`).
+        measured joints' :data:`OUTLIER_VARIANCE_RATIO`). With several descendants
+        (a chest aimed at the neck and the shoulders) the network's few mm of error at
+        each turn the whole joint.
     smoothed : ndarray, shape (F, D), optional
         The channels' :func:`smooth_and_fill`, when the caller has it (at ``step``).
 
@@ -723,13 +726,15 @@ def ik_reference(
     reference = reference[:, angle_slice(skeleton)].reshape(positions.shape)
     frames = np.zeros(observed.shape, bool)
     measured = _measured_joints(skeleton, observed, short_lever_cm)
+    levers = np.setdiff1d(short_lever_joints(skeleton, angle_lever_cm, observed), [*short, *skeleton.root_chain])
     in_angles = False  # the take's noise is not in its positions
     if measured.size:
-        angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, measured, step)
-        in_angles = not _noise_is_in_positions(skeleton, angle, position)
-        if in_angles and np.median(heavy) < OUTLIER_VARIANCE_RATIO * np.median(angle):
-            lever = np.isin(measured, short_lever_joints(skeleton, angle_lever_cm))
-            quiet = measured[lever & _quieter(angle, heavy, position)]
+        joints = np.union1d(measured, levers)  # each measured once
+        angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
+        of_take = np.isin(joints, measured)
+        in_angles = not _noise_is_in_positions(skeleton, angle[of_take], position[of_take])
+        if in_angles and np.median(heavy[of_take]) < OUTLIER_VARIANCE_RATIO * np.median(angle[of_take]):
+            quiet = joints[np.isin(joints, levers) & _quieter(angle, heavy, position)]
             frames[:, quiet] = observed[:, quiet]
     return reference, {
         "reference_joints": short,
