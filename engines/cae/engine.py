@@ -28,8 +28,8 @@ network completes the image of a take and IK turns it back into angles (the pape
    network was trained for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference`
    with ``anchor``, else the bridged observation) gives the twist, the leaves and the angles of joints
    within ``short_lever_cm`` of all their children (mm of error turn a 3-cm lever by tens of degrees);
-   with ``anchor``, where the noise is in the angles, also those of joints aimed at one descendant
-   within ``angle_lever_cm`` (feet to arms: a hand carries the arm's noise). ``anchor=false,output_sigma_frames=0``:
+   with ``anchor``, where the noise is in the angles, also those of joints whose aimed descendants lie
+   within ``angle_lever_cm`` (feet, chest, arms: a hand carries the arm's noise). ``anchor=false,output_sigma_frames=0``:
    the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
@@ -109,8 +109,8 @@ class TrainingParams:
     (training and inference).
     ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
     to the observation; ``short_lever_cm``: joints whose children lie closer keep their
-    observed angles, 0 for none; ``angle_lever_cm``: with ``anchor``, joints aimed at one
-    descendant this close keep their smoothed observed angles where the noise is in the
+    observed angles, 0 for none; ``angle_lever_cm``: with ``anchor``, joints whose aimed
+    descendants lie this close keep their smoothed observed angles where the noise is in the
     angles, 0 for none (both: the module docstring); ``views``: how many of
     :data:`VIEWS` (the take, its left/right mirror, the take played backwards, the mirror
     played backwards) are completed and averaged (all: the module docstring);

@@ -154,7 +154,7 @@ class MSSA(Engine):
         #: kalman smoother, instead of being aimed from the filtered positions (as in
         #: ``cae``); 0: aim every joint
         short_lever_cm: float = 5.0
-        #: space "positions": joints aimed at one descendant within this many cm keep
+        #: space "positions": joints whose aimed descendants lie within this many cm keep
         #: their smoothed observed angles where the noise is in the angles (as in
         #: ``cae``; :func:`workbench.engine.smoothing.ik_reference`); 0: none
         angle_lever_cm: float = 30.0
