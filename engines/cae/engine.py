@@ -29,7 +29,7 @@ network completes the image of a take and IK turns it back into angles (the pape
    with ``anchor``, else the bridged observation) gives the twist, the leaves and the angles of joints
    within ``short_lever_cm`` of all their children (mm of error turn a 3-cm lever by tens of degrees);
    with ``anchor``, where the noise is in the angles, also those of joints whose aimed descendants lie
-   within ``angle_lever_cm`` (feet, chest, arms: a hand carries the arm's noise). ``anchor=false,output_sigma_frames=0``:
+   within ``angle_lever_cm`` (feet, chest, arms: a hand has the arm's noise). ``anchor=false,output_sigma_frames=0``:
    the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
