@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from .core.motion import Motion, angle_columns, position_unknown
+from .core.rotations import wrap_deg
 
 
 def _check(truth: Motion, estimate: Motion) -> None:
@@ -32,8 +33,7 @@ def angle_error_deg(truth: Motion, estimate: Motion) -> np.ndarray:
     """(F, C) signed wrap-safe errors of the joint-angle channels, in degrees."""
     _check(truth, estimate)
     cols = angle_columns(truth.skeleton)
-    d = estimate.channels[:, cols] - truth.channels[:, cols]
-    return (d + 180.0) % 360.0 - 180.0
+    return wrap_deg(estimate.channels[:, cols] - truth.channels[:, cols])
 
 
 def rms_angle_deg_per_frame(truth: Motion, estimate: Motion) -> np.ndarray:

@@ -23,6 +23,7 @@ from workbench import metrics, registry
 from workbench.core.channels import hole_length
 from workbench.core.kinematics import forward_kinematics
 from workbench.core.motion import Observation, joint_angle_columns, position_unknown
+from workbench.core.rotations import wrap_deg
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
@@ -318,7 +319,7 @@ def test_chest_and_arms_keep_their_smoothed_angles_where_the_noise_is_in_the_ang
 
     def error(m, names):
         joints = [sk.index(n) for n in names]
-        return np.sqrt(np.mean(((m.angles_deg[:, joints] - studio_take.angles_deg[:, joints] + 180) % 360 - 180) ** 2))
+        return np.sqrt(np.mean(wrap_deg(m.angles_deg[:, joints] - studio_take.angles_deg[:, joints]) ** 2))
 
     noisy = parse_corruption("angular:0.5").apply(studio_take, seed=0)
     kept, aimed = (registry.create(s).clean(noisy).motion for s in ("cae", "cae:angle_lever_cm=13.5"))
