@@ -143,6 +143,33 @@ def euler_rates(angles_deg: np.ndarray, order: str, axis: np.ndarray) -> np.ndar
     return np.rad2deg(rates / det[..., None])
 
 
+def euler_axes(angles_deg: np.ndarray, order: str) -> np.ndarray:
+    """The axes about which each Euler angle turns its rotation, in the frame the rotation maps to.
+
+    With ``R = R_a(a) R_b(b) R_c(c)`` in ``order``, turning angle k by ``dk`` radians turns
+    any vector ``R v`` by ``dk axis_k x R v``: ``axis_a = e_a``, ``axis_b = R_a e_b``,
+    ``axis_c = R_a R_b e_c``. At gimbal lock (middle angle +-90) the first and the last
+    coincide.
+
+    Parameters
+    ----------
+    angles_deg : ndarray, shape (..., 3)
+        Euler angles in degrees, in ``order``.
+    order : str
+        A permutation of "XYZ".
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        Unit axes, one per row, in the angles' order.
+    """
+    first, middle, last = _check_order(order)
+    a = np.deg2rad(np.asarray(angles_deg, dtype=float))
+    R_a = axis_rotation(first, a[..., 0])
+    R_ab = R_a @ axis_rotation(middle, a[..., 1])
+    return np.stack([np.broadcast_to(np.eye(3)[first], a.shape), R_a[..., :, middle], R_ab[..., :, last]], axis=-2)
+
+
 def wrap_deg(angles_deg: np.ndarray) -> np.ndarray:
     """Wrap angles into [-180, 180)."""
     return (np.asarray(angles_deg) + 180.0) % 360.0 - 180.0
