@@ -28,9 +28,9 @@ network completes the image of a take and IK turns it back into angles (the pape
    network was trained for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference`
    with ``anchor``, else the bridged observation) gives the twist, the leaves and the angles of joints
    within ``short_lever_cm`` of all their children (mm of error turn a 3-cm lever by tens of degrees);
-   with ``anchor``, where the noise is in the angles, also those of joints whose aimed descendants lie
-   within ``angle_lever_cm`` (feet, chest, arms: a hand has the arm's noise). ``anchor=false,output_sigma_frames=0``:
-   the paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
+   with ``anchor``, under angle noise, also those of joints aimed within ``angle_lever_cm`` (feet, chest, arms); the
+   other aimed joints weigh it against their aim by the noise in each. ``anchor=false,output_sigma_frames=0``: the
+   paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
 them as known entries (in a first pass's body frame where the root is missing); the network's miss

@@ -12,8 +12,8 @@ Channels: ``space="angles"`` (default) filters the joint-angle channels (degrees
 the root, unwrapped robustly (so an outlier leaves no whole turn behind), back on the observation's
 own branch. ``"positions"`` filters root-relative joint positions (F, 3J), file units, from FK of the
 bridged observation (observed where all the joint's ancestors are), and returns to angles by
-``inverse_kinematics`` keeping what :func:`workbench.engine.smoothing.ik_reference` keeps, as ``cae``
-does (``short_lever_cm``, ``angle_lever_cm``). ``fit`` learns the bases of both spaces.
+``inverse_kinematics`` keeping and weighing what :func:`workbench.engine.smoothing.ik_reference` says,
+as ``cae`` does (``short_lever_cm``, ``angle_lever_cm``). ``fit`` learns the bases of both spaces.
 
 Per channel u = (x - c) / s: c the take's own median (robust to outliers, and it removes posture
 offsets the training subjects do not share with new performers), s the RMS deviation from those

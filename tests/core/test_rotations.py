@@ -106,3 +106,21 @@ def test_euler_rates_are_the_derivative_of_the_angles_under_a_turn_about_an_axis
 def test_euler_rates_stay_finite_at_gimbal_lock():
     rates = rot.euler_rates(np.array([[10.0, 90.0, 0.0], [10.0, 89.9, 0.0]]), "ZXY", np.array([0.0, 0.0, 1.0]))
     assert np.isfinite(rates).all() and np.abs(rates[1]).max() > 1e3  # near lock: fast
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@given(a=angles, v=arrays(np.float64, (3,), elements=st.floats(-1, 1)))
+@settings(max_examples=20, deadline=None)
+def test_euler_axes_turn_a_rotated_vector_as_its_angles_do(order, a, v):
+    """d(R v)/d(angle k) is axis_k x R v, per radian, against a central difference; the
+    axes are unit vectors, and at gimbal lock the first and the last coincide."""
+    axes = rot.euler_axes(a, order)
+    h = 1e-6
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = h
+        slope = (rot.euler_to_matrix(a + d, order) - rot.euler_to_matrix(a - d, order)) @ v / np.deg2rad(2 * h)
+        np.testing.assert_allclose(slope, np.cross(axes[:, k], rot.euler_to_matrix(a, order) @ v), atol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(axes, axis=-1), 1.0)
+    locked = rot.euler_axes(np.array([30.0, 90.0, -20.0]), order)
+    np.testing.assert_allclose(np.abs(locked[0] @ locked[2]), 1.0)

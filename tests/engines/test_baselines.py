@@ -378,7 +378,8 @@ def test_angle_levers_keep_the_reference_where_the_noise_is_in_the_angles(corrup
     position does under angle noise (the toe carries the noise of the whole leg), not
     under position noise, and not when the angles have outliers: IK keeps them at the
     reference in their observed frames only then, and turns the bones towards the
-    reference's Euler angles wherever the noise is not in the positions."""
+    reference's Euler angles wherever the noise is not in the positions. Only then too
+    it weighs the reference against the aim of the joints it measures, by variances."""
     from workbench.corruption import parse_corruption
     from workbench.engine.signal import bridge_gaps
     from workbench.engine.smoothing import ik_reference
@@ -391,6 +392,9 @@ def test_angle_levers_keep_the_reference_where_the_noise_is_in_the_angles(corrup
     _, ik = ik_reference(sk, bridged, obs.observed, positions, short_lever_cm=5.0, angle_lever_cm=30.0)
     np.testing.assert_array_equal(ik["reference_frames"][:, feet], obs.observed[:, feet] & quieter)
     assert ik["reference_measured"].all() == corruption.startswith("angular")
+    weighed = np.isfinite(ik["aim_variance"])  # IK weighs the reference against the aim
+    assert weighed[feet].all() == quieter and weighed.any() == quieter
+    assert (ik["reference_variance"][weighed] > 0).all()
     _, ik = ik_reference(sk, bridged, obs.observed, positions, short_lever_cm=5.0, angle_lever_cm=10.0)
     assert not ik["reference_frames"][:, feet].any()  # the feet's 13 cm are beyond the lever
 
