@@ -292,7 +292,8 @@ def test_anchor_sheds_the_position_noise_that_angle_noise_makes(test_clip):
 def test_feet_keep_their_smoothed_angles_where_the_noise_is_in_the_angles(test_clip):
     """Under angle noise the feet keep their observed angles, smoothed: aimed at the toe
     (13 cm away), whose position carries the noise of the whole leg, they were off by
-    several times more. Under position noise they are aimed, as with angle_lever_cm=0."""
+    several times more, and weighed against that aim (angle_lever_cm=0) still by 1.6
+    times. Under position noise they are aimed, as with angle_lever_cm=0."""
     feet = [test_clip.skeleton.index(n) for n in ("LeftFoot", "RightFoot")]
 
     def feet_error(m):
@@ -300,7 +301,7 @@ def test_feet_keep_their_smoothed_angles_where_the_noise_is_in_the_angles(test_c
 
     noisy = parse_corruption("angular:0.5").apply(test_clip, seed=0)
     kept, aimed = (registry.create(s).clean(noisy).motion for s in ("cae", "cae:angle_lever_cm=0"))
-    assert feet_error(kept) < 0.5 * feet_error(aimed)
+    assert feet_error(kept) < 0.75 * feet_error(aimed)
     assert feet_error(kept) < 0.5 * feet_error(noisy.motion)
     assert metrics.rms_angle_deg(test_clip, kept) < metrics.rms_angle_deg(test_clip, aimed)
     assert metrics.mpjpe_cm(test_clip, kept) < metrics.mpjpe_cm(test_clip, aimed)
@@ -314,7 +315,8 @@ def test_chest_and_arms_keep_their_smoothed_angles_where_the_noise_is_in_the_ang
     """Under angle noise a studio take's chest (aimed at the neck and both shoulders, 16 cm
     at most) and forearms (22 cm) keep their observed angles, smoothed, within the
     30-cm angle lever: aimed at the network's joints they were turned by its errors, the
-    chest further than the noise itself had turned it."""
+    chest further than the noise itself had turned it. Beyond a 13.5-cm lever the
+    forearms weigh their angles against that aim, and come out 20 % further off."""
     sk = studio_take.skeleton
 
     def error(m, names):
@@ -323,9 +325,10 @@ def test_chest_and_arms_keep_their_smoothed_angles_where_the_noise_is_in_the_ang
 
     noisy = parse_corruption("angular:0.5").apply(studio_take, seed=0)
     kept, aimed = (registry.create(s).clean(noisy).motion for s in ("cae", "cae:angle_lever_cm=13.5"))
-    for names in (["Chest"], ["LowerArm_L", "LowerArm_R"]):  # 0.98 against 3.19; 1.50 against 3.44
-        assert error(kept, names) < 0.6 * min(error(aimed, names), error(noisy.motion, names))
-    assert metrics.rms_angle_deg(studio_take, kept) < 0.9 * metrics.rms_angle_deg(studio_take, aimed)
+    chest, arms = ["Chest"], ["LowerArm_L", "LowerArm_R"]
+    assert error(kept, chest) < 0.6 * min(error(aimed, chest), error(noisy.motion, chest))  # 0.98, 2.83, 2.20
+    assert error(kept, arms) < 0.9 * error(aimed, arms) < 0.5 * error(noisy.motion, arms)  # 1.50, 1.80, 3.47
+    assert metrics.rms_angle_deg(studio_take, kept) < metrics.rms_angle_deg(studio_take, aimed)
 
 
 def test_anchor_sheds_the_noise_of_the_root_track(test_clip):
