@@ -252,3 +252,4 @@ def test_a_joint_weighs_its_reference_angles_against_its_aim_by_their_variances(
     np.testing.assert_allclose(solve(1e12)[:, j], ref[:, j], atol=1e-3)
     surer = solve(0.01 * noise_cm**2)  # the aim 100 times surer
     assert aim_miss_deg(surer) < 0.1 * aim_miss_deg(weighed) and rms(surer, ref) > rms(weighed, ref)
+    assert np.isfinite(solve(0.0)).all()  # a descendant that never moves from its joint: aimed at

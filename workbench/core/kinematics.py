@@ -199,6 +199,9 @@ WEIGH_STEPS = 2
 #: the least variance (degrees^2) a reference angle is taken to have: a constant channel,
 #: which angle noise leaves alone, keeps its reference
 REFERENCE_VARIANCE_FLOOR = 1e-6
+#: the least variance an aim is taken to have, as a turn of its bone (radians^2, 0.006
+#: degrees): a descendant that never moves from its joint (an aim variance of 0) is aimed at
+AIM_VARIANCE_FLOOR = 1e-8
 
 
 def _weighed_euler(
@@ -233,11 +236,12 @@ def _weighed_euler(
     reach = np.maximum(np.linalg.norm(target, axis=-1, keepdims=True), 1e-300)  # a target at the joint: no pull
     target = target * (np.linalg.norm(bone, axis=-1, keepdims=True) / reach)
     w_ref = 1.0 / np.maximum(reference_variance, REFERENCE_VARIANCE_FLOOR)  # (3,)
+    aim_variance = np.maximum(aim_variance, AIM_VARIANCE_FLOOR * np.sum(bone**2, axis=-1))[:, None]  # (n, 1)
     e = e_all[frames]
     for _ in range(WEIGH_STEPS):
         reached = (euler_to_matrix(e, order) @ bone[..., None])[..., 0]
         slope = np.deg2rad(np.cross(euler_axes(e, order), reached[:, None, :]))  # (n, angle, xyz) per degree
-        hessian = np.einsum("nix,njx->nij", slope, slope) / aim_variance + np.diag(w_ref)
+        hessian = np.einsum("nix,njx->nij", slope, slope) / aim_variance[..., None] + np.diag(w_ref)
         gradient = np.einsum("nix,nx->ni", slope, reached - target) / aim_variance + w_ref * (e - reference_deg)
         e -= np.linalg.solve(hessian, gradient[..., None])[..., 0]
     e_all[frames] = e
