@@ -3,6 +3,7 @@ import pytest
 
 from workbench import registry
 from workbench.core import Observation
+from workbench.core.rotations import wrap_deg
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, Pipeline
 
 
@@ -15,7 +16,7 @@ def test_identity_bridges_gaps_and_keeps_observed(walk):
     c = 3 + 3 * 4
     assert np.allclose(X[50:60, c], np.interp(np.arange(50, 60), [49, 60], [T[49, c], T[60, c]]))
     keep = np.ones(X.shape[1], bool)
-    assert np.allclose(((X - T)[:50] + 180) % 360 - 180, 0)
+    assert np.allclose(wrap_deg((X - T)[:50]), 0)
     del keep
 
 

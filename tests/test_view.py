@@ -8,6 +8,7 @@ import pytest
 
 from workbench import registry
 from workbench.core.motion import Observation
+from workbench.core.rotations import wrap_deg
 from workbench.corruption import parse_corruption
 from workbench.engine import CleanResult, EngineError
 from workbench.engine.view import ModelView, body_skeleton, from_body, resample, to_body
@@ -89,7 +90,7 @@ def test_an_engine_that_sees_a_30_fps_take_at_120_measures_its_noise_on_the_capt
     cols = angle_columns(studio_take.skeleton)
 
     def error(m):
-        return np.sqrt(np.mean(((m.channels[:, cols] - studio_take.channels[:, cols] + 180) % 360 - 180) ** 2))
+        return np.sqrt(np.mean(wrap_deg(m.channels[:, cols] - studio_take.channels[:, cols]) ** 2))
 
     assert error(registry.create(spec).clean(obs).motion) < 0.7 * error(obs.motion)
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, retime, rewrap_deg, unwrap_deg
+from workbench.core.rotations import wrap_deg
 
 
 def test_retime_plays_faster_and_slower_by_linear_interpolation():
@@ -94,8 +95,8 @@ def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
     (wrapped), with a gap after it. np.unwrap follows the outlier and the rest of the
     take lands a whole turn away; the robust rule keeps it on its branch."""
     truth = np.linspace(150.0, 230.0, 60)[:, None]  # (60, 1), continuous
-    X = (truth + 180.0) % 360.0 - 180.0  # wrapped to [-180, 180)
-    X[30] = (X[30] - 179.5 + 180.0) % 360.0 - 180.0  # the outlier
+    X = wrap_deg(truth)  # wrapped to [-180, 180)
+    X[30] = wrap_deg(X[30] - 179.5)  # the outlier
     observed = np.ones_like(X, bool)
     observed[40:45] = False
     plain = unwrap_deg(np.where(observed, X, np.nan), observed)
@@ -104,7 +105,7 @@ def test_robust_unwrap_keeps_the_branch_after_an_outlier_near_half_a_turn():
     assert np.allclose(np.abs(plain[after] - truth[after]), 360.0)
     assert np.allclose(robust[after] - truth[after], 0.0)
     assert np.all(np.isnan(robust[~observed]))
-    clean = (truth + 180.0) % 360.0 - 180.0  # without the outlier: as np.unwrap
+    clean = wrap_deg(truth)  # without the outlier: as np.unwrap
     assert np.array_equal(unwrap_deg(clean, robust=True), np.unwrap(clean, period=360.0, axis=0))
 
 

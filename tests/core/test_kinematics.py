@@ -3,6 +3,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from workbench.core import Motion, forward_kinematics, inverse_kinematics
+from workbench.core.rotations import wrap_deg
 from workbench.metrics import bone_lengths
 
 
@@ -50,7 +51,7 @@ def test_ik_recovers_a_studio_take_and_keeps_its_translations(studio_take, stret
         np.testing.assert_allclose(root, m.root_positions, atol=1e-9)
         np.testing.assert_allclose(trans, m.translations, atol=1e-9)
         np.testing.assert_allclose(m.replace(angles_deg=ang).positions, m.positions, atol=1e-6)
-        np.testing.assert_allclose(((ang - m.angles_deg + 180) % 360) - 180, 0, atol=1e-6)
+        np.testing.assert_allclose(wrap_deg(ang - m.angles_deg), 0, atol=1e-6)
 
 
 def test_fk_keeps_bone_lengths(walk, kick):

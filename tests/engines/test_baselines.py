@@ -10,6 +10,7 @@ from scipy.interpolate import CubicSpline
 
 from workbench.core.channels import interpolate_gaps, unwrap_deg
 from workbench.core.motion import Motion, Observation, angle_columns
+from workbench.core.rotations import wrap_deg
 from workbench.engine import EngineError, NotFittedError
 from workbench.io import read_bvh
 from workbench.registry import create
@@ -67,7 +68,7 @@ def with_gaps(motion: Motion, seed: int = 1) -> Observation:
 
 def angle_rms(a: Motion, b: Motion) -> float:
     cols = angle_columns(a.skeleton)
-    d = (a.channels[:, cols] - b.channels[:, cols] + 180.0) % 360.0 - 180.0
+    d = wrap_deg(a.channels[:, cols] - b.channels[:, cols])
     return float(np.sqrt(np.mean(d**2)))
 
 

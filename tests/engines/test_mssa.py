@@ -16,6 +16,7 @@ from engines.mssa.solver import WindowProjector, robust_filter, second_differenc
 from workbench import registry
 from workbench.core import Observation
 from workbench.core.motion import angle_columns, channel_mask, joint_angle_columns
+from workbench.core.rotations import wrap_deg
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
@@ -105,7 +106,7 @@ def test_outliers_are_rejected_better_than_by_least_squares(fitted, walk):
         keep = np.isin(angle_columns(walk.skeleton), cols)
         return float(np.sqrt(np.mean(err[:, keep] ** 2)))
 
-    d = ((obs.motion.channels - walk.channels)[:, cols] + 180.0) % 360.0 - 180.0
+    d = wrap_deg((obs.motion.channels - walk.channels)[:, cols])
     noisy = float(np.sqrt(np.mean(d**2)))
     assert rms(robust) < 0.35 * rms(plain) and rms(plain) < noisy
     assert rms(robust) < 3.0
@@ -191,7 +192,7 @@ def test_missing_entries_are_filled_and_observed_ones_kept_close(fitted, walk):
     out = res.motion.channels
     assert np.isfinite(out).all() and out.shape == walk.channels.shape
     mask = channel_mask(observed, walk.skeleton)
-    err = np.abs((out - walk.channels + 180) % 360 - 180)
+    err = np.abs(wrap_deg(out - walk.channels))
     cols = modelled_angle_columns(fitted, walk)
     # four training takes: observed samples stay within ~2 degrees, filled ones ~3 (RMS)
     assert np.sqrt(np.mean(err[:, cols][mask[:, cols]] ** 2)) < 2.5
