@@ -449,6 +449,28 @@ def smooth_joint_angles(
 OUTLIER_VARIANCE_RATIO = 3.0
 
 
+def _first_aimed(skeleton, joints: np.ndarray) -> np.ndarray:
+    """The first aimed descendant of each of ``joints`` (n,): the one each is measured at."""
+    return np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
+
+
+def _angle_variance(
+    channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, robust: bool, step: float
+) -> np.ndarray:
+    """The noise variance of each observed angle of ``joints`` (n, 3), degrees^2 per captured
+    sample (:func:`measurement_variance`)."""
+    seen = np.repeat(observed[:, joints], 3, axis=1)  # (F, 3n)
+    variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, robust, step=step) / step
+    return variance.reshape(len(joints), 3)
+
+
+def _as_seen_by_descendant(skeleton, joints: np.ndarray, angle_variance: np.ndarray) -> np.ndarray:
+    """Angle variances (n, 3, degrees^2) as the first aimed descendant of each joint sees them:
+    the mean over the three angles, in rad^2, times the lever^2 (file units^2)."""
+    lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[_first_aimed(skeleton, joints)] ** 2, axis=1)
+    return angle_variance.mean(axis=1) * lever2
+
+
 def angle_noise(
     skeleton, channels: np.ndarray, observed: np.ndarray, joints: np.ndarray, robust: bool = True, *, step: float = 1.0
 ) -> np.ndarray:
@@ -477,18 +499,14 @@ def angle_noise(
     IndexError
         A joint aimed at no descendant.
     """
-    children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
-    seen = np.repeat(observed[:, joints], 3, axis=1)  # (F, 3n)
-    lever2 = np.deg2rad(1.0) ** 2 * np.sum(skeleton.offsets[children] ** 2, axis=1)
-    variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, robust, step=step) / step
-    return variance.reshape(len(joints), 3).mean(axis=1) * lever2
+    return _as_seen_by_descendant(skeleton, joints, _angle_variance(channels, observed, joints, robust, step))
 
 
 def angle_and_position_noise(
     skeleton, channels: np.ndarray, observed: np.ndarray, positions: np.ndarray, joints: np.ndarray, step: float = 1.0
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The noise of ``joints`` as their descendants see it, through the angles and the positions,
-    per captured sample.
+    per captured sample; and the noise of each of their angles.
 
     Parameters
     ----------
@@ -506,15 +524,20 @@ def angle_and_position_noise(
     position : ndarray, shape (n,)
         In the descendant's observed position seen from the joint (where both are
         observed; :func:`measurement_variance`, the mean over x, y, z), in file units^2.
+    angles : ndarray, shape (n, 3)
+        Of each observed angle of the joints (``angle`` before it is seen from the
+        descendant), in degrees^2.
     """
-    children = np.array([skeleton.aimed_descendants[j][0][0] for j in joints], int)
+    children = _first_aimed(skeleton, joints)
     n = len(joints)
     relative = (positions[:, children] - positions[:, joints]).reshape(len(positions), 3 * n)
     both = np.repeat(observed[:, joints] & observed[:, children], 3, axis=1)
+    angles = _angle_variance(channels, observed, joints, True, step)
     return (
-        angle_noise(skeleton, channels, observed, joints, step=step),
+        _as_seen_by_descendant(skeleton, joints, angles),
         angle_noise(skeleton, channels, observed, joints, False, step=step),
         measurement_variance(relative, both, step=step).reshape(n, 3).mean(axis=1) / step,
+        angles,
     )
 
 
@@ -586,7 +609,7 @@ def _take_noise(
     joints = _measured_joints(skeleton, observed, short_lever_cm)
     if not joints.size:
         return None
-    angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
+    angle, heavy, position, _ = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
     return float(np.median(angle)), float(np.median(heavy)), float(np.median(position))
 
 
@@ -744,16 +767,14 @@ def ik_reference(
     in_angles = False  # the take's noise is not in its positions
     if measured.size:
         joints = np.union1d(measured, levers)  # each measured once
-        angle, heavy, position = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
+        angle, heavy, position, angles = angle_and_position_noise(skeleton, channels, observed, positions, joints, step)
         of_take = np.isin(joints, measured)
         in_angles = not _noise_is_in_positions(skeleton, angle[of_take], position[of_take])
         if in_angles and np.median(heavy[of_take]) < OUTLIER_VARIANCE_RATIO * np.median(angle[of_take]):
             quiet = joints[np.isin(joints, levers) & _quieter(angle, heavy, position)]
             frames[:, quiet] = observed[:, quiet]
             aim_variance[joints] = position
-            seen = np.repeat(observed[:, joints], 3, axis=1)
-            variance = measurement_variance(channels[:, joint_angle_columns(joints)], seen, step=step) / step
-            reference_variance[joints] = variance.reshape(-1, 3)
+            reference_variance[joints] = angles
     return reference, {
         "reference_joints": short,
         "reference_frames": frames,
