@@ -135,6 +135,8 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
                 "2",
                 "--per-clip",
                 "rms_angle_deg",
+                "--per-joint",
+                "mpjpe_cm",
                 "--json",
                 str(js),
             ]
@@ -158,6 +160,16 @@ def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
             assert len(seeds) == 2 and float(cell) == pytest.approx(np.mean(seeds), abs=6e-4)
     means = [f"{doc['summary'][spec]['rms_angle_deg']:.3f}" for spec in ("identity", "gaussian")]
     assert table[-1] == "| **mean** | | " + " | ".join(means) + " |"
+    # the per-joint table: a row per joint but the root, each engine's mean over the rows
+    table = out.split("\n\n")[2].splitlines()
+    assert table[0] == "| joint (mpjpe_cm) | identity | gaussian |"
+    first = doc["rows"][0]["per_joint"]["mpjpe_cm"]
+    assert [line.split(" | ")[0][2:] for line in table[2:]] == list(first) and "root" not in first
+    for line in table[2:]:
+        joint, *cells = line.strip("| ").split(" | ")
+        for spec, cell in zip(("identity", "gaussian"), cells):
+            values = [r["per_joint"]["mpjpe_cm"][joint] for r in doc["rows"] if r["engine"] == spec]
+            assert len(values) == 2 * len(doc["clips"]) and float(cell) == pytest.approx(np.mean(values), abs=6e-4)
     # the reference's capture glitches are named, on stderr and in the JSON
     assert "2 of the clean clips have capture glitches" in err
     assert "cmu/run/35_26: RightFingerBase turns 170 degrees in one frame (frames 64-67)" in err
@@ -280,6 +292,28 @@ def test_per_clip_marks_a_metric_no_seed_defines():
     ]
     with pytest.raises(ValueError, match="unknown metric"):
         result.per_clip("speed")
+
+
+def test_per_joint_is_by_dataset_skips_undefined_values_and_refuses_other_metrics():
+    from workbench.evaluate import BenchResult
+
+    def row(clip, value):
+        return {"engine": "x", "clip": clip, "per_joint": {"rms_angle_deg": {f"{clip}-joint": value}, "mpjpe_cm": {}}}
+
+    result = BenchResult(
+        "angular:0.5",
+        [0, 1],
+        ["a", "b"],
+        rows=[row("a", 1.0), row("a", 3.0), row("a", float("nan")), row("b", 5.0), {"engine": "x", "clip": "b"}],
+        summary={"x": {}, "y": {}},
+        dataset_of={"a": "one", "b": "two"},
+    )
+    nan = pytest.approx(float("nan"), nan_ok=True)
+    assert result.per_joint("rms_angle_deg", "one") == {"a-joint": {"x": 2.0, "y": nan}}
+    assert result.per_joint("rms_angle_deg") == {"a-joint": {"x": 2.0, "y": nan}, "b-joint": {"x": 5.0, "y": nan}}
+    assert result.per_joint_markdown("rms_angle_deg", "two").splitlines()[2:] == ["| b-joint | 5.000 | – |"]
+    with pytest.raises(ValueError, match="unknown per-joint metric"):
+        result.per_joint("jitter_cm_s3")
 
 
 def test_module_entry_point_runs():

@@ -137,3 +137,59 @@ def test_a_stretching_bone_is_scored_in_positions(stretchy_take):
     observed = np.ones(err.shape, bool)
     observed[10:20, arm[0]] = False  # a translated joint missing: its own position is unknown
     assert metrics.gap_mpjpe_cm(stretchy_take, rigid, observed) == pytest.approx(err[10:20, arm].mean())
+
+
+def _descendant_names(skeleton, joint: int) -> set[str]:
+    below = {joint}
+    for k in range(joint + 1, skeleton.n_joints):  # parents come first
+        if skeleton.parents[k] in below:
+            below.add(k)
+    return {skeleton.names[k] for k in below - {joint}}
+
+
+@pytest.mark.parametrize("take", ["walk", "studio_take"])
+def test_per_joint_scores_add_up_to_the_headline_numbers(take, request):
+    """The joints' mean squared angle errors average to the frames' mean square, and their
+    position errors (with the body root's 0) to mpjpe; one joint turned is one joint's
+    error, and its descendants' positions."""
+    truth = request.getfixturevalue(take)
+    sk = truth.skeleton
+    rng = np.random.default_rng(0)
+    X = truth.channels
+    cols = angle_columns(sk)
+    X[:, cols] += rng.normal(0.0, 2.0, (truth.n_frames, cols.size))
+    noisy = truth.with_channels(X)
+    by_joint = metrics.per_joint(truth, noisy)
+    angles = np.array(list(by_joint["rms_angle_deg"].values()))
+    assert list(by_joint["rms_angle_deg"]) == [sk.names[j] for j in metrics.angle_joints(sk)]
+    per_frame = metrics.rms_angle_deg_per_frame(truth, noisy)
+    assert np.mean(angles**2) == pytest.approx(np.mean(per_frame**2), rel=1e-12)
+    positions = np.array(list(by_joint["mpjpe_cm"].values()))
+    assert sk.names[sk.body_root] not in by_joint["mpjpe_cm"]
+    assert np.sum(positions) / metrics.body_joints(sk).size == pytest.approx(metrics.mpjpe_cm(truth, noisy), rel=1e-12)
+    j = next(int(j) for j in metrics.angle_joints(sk) if any(np.any(sk.offsets[c]) for c in sk.children[j]))
+    X = truth.channels
+    X[:, 3 + 3 * j] += 5.0
+    one = metrics.per_joint(truth, truth.with_channels(X))
+    wrong = {name for name, v in one["rms_angle_deg"].items() if v > 0}
+    assert wrong == {sk.names[j]} and one["rms_angle_deg"][sk.names[j]] == pytest.approx(5.0 / np.sqrt(3.0))
+    assert "gap_mpjpe_cm" not in by_joint and "gap_mpjpe_cm" not in one
+    moved = {name for name, v in one["mpjpe_cm"].items() if v > 1e-9}
+    assert moved and moved <= _descendant_names(sk, j)
+
+
+def test_per_joint_gap_error_is_over_the_positions_that_depend_on_missing_data(walk):
+    sk = walk.skeleton
+    j = next(int(j) for j in metrics.angle_joints(sk) if sk.children[j])
+    observed = np.ones((walk.n_frames, sk.n_joints), bool)
+    observed[10:20, j] = False
+    X = walk.channels
+    X[10:20, 3 + 3 * j] += 5.0  # the gap filled 5 degrees off
+    estimate = walk.with_channels(X)
+    gaps = metrics.per_joint(walk, estimate, observed)["gap_mpjpe_cm"]
+    below = _descendant_names(sk, j)
+    assert all(np.isnan(v) for name, v in gaps.items() if name not in below | {sk.names[j]})
+    assert np.isnan(gaps[sk.names[j]])  # its own position does not depend on its angles
+    errors = metrics.joint_position_error_cm(walk, estimate)
+    for name in below:
+        assert gaps[name] == pytest.approx(errors[10:20, sk.names.index(name)].mean())

@@ -457,6 +457,7 @@ def cmd_bench(args) -> int:
         datasets={c.id: c.dataset for c in chosen},
         workers=args.workers,
         scheduler=args.scheduler,
+        per_joint=bool(args.per_joint),
     )
     datasets = result.datasets()
     if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
@@ -469,6 +470,12 @@ def cmd_bench(args) -> int:
     if args.per_clip:
         print()
         print(result.per_clip_markdown(args.per_clip))
+    if args.per_joint:  # a table per dataset: their skeletons differ
+        for name, ids in datasets.items():
+            print()
+            if len(datasets) > 1:
+                print(f"{name or 'clips'} ({len(ids)} clips):")
+            print(result.per_joint_markdown(args.per_joint, name))
     _bench_notes(result)
     if result.worker_peaks_mb:
         peaks = ", ".join(f"{mb:,.0f}" for mb in result.worker_peaks_mb.values())
@@ -686,7 +693,7 @@ def cmd_screenshots(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     from .data import SPLITS
-    from .metrics import METRICS
+    from .metrics import JOINT_METRICS, METRICS
 
     p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
@@ -796,6 +803,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=METRICS,
         metavar="METRIC",
         help=f"also a table of METRIC per clip, mean over the seeds ({', '.join(METRICS)})",
+    )
+    sp.add_argument(
+        "--per-joint",
+        choices=JOINT_METRICS,
+        metavar="METRIC",
+        help=f"also a table of METRIC per joint, mean over the clips and seeds ({', '.join(JOINT_METRICS)})",
     )
     sp.add_argument("--json", metavar="PATH")
     sp.add_argument("-v", "--verbose", action="store_true")

@@ -164,6 +164,34 @@ class BenchResult:
             for clip in self.clips
         }
 
+    def per_joint(self, metric: str, dataset: str | None = None) -> dict[str, dict[str, float]]:
+        """``metric`` (one of :data:`~workbench.metrics.JOINT_METRICS`) by joint, in the
+        skeleton's order, then by engine: the mean over the rows (clips and seeds) of
+        one dataset, or of all, that define it for the joint (rows made with
+        ``per_joint``; NaN for an engine with none)."""
+        if metric not in metrics.JOINT_METRICS:
+            raise ValueError(f"unknown per-joint metric {metric!r}; one of {', '.join(metrics.JOINT_METRICS)}")
+        chosen = set(self.clips if dataset is None else self.datasets().get(dataset, ()))
+        values: dict[str, dict[str, list[float]]] = {}
+        for r in self.rows:
+            if r["clip"] in chosen and "per_joint" in r:
+                for joint, value in r["per_joint"].get(metric, {}).items():
+                    by_engine = values.setdefault(joint, {})
+                    if not math.isnan(value):
+                        by_engine.setdefault(r["engine"], []).append(value)
+        return {
+            joint: {spec: float(np.mean(by_engine[spec])) if spec in by_engine else math.nan for spec in self.summary}
+            for joint, by_engine in values.items()
+        }
+
+    def per_joint_markdown(self, metric: str, dataset: str | None = None) -> str:
+        """A table of ``metric`` with a row per joint (:meth:`per_joint`) and a column per engine."""
+        specs = list(self.summary)
+        lines = [f"| joint ({metric}) | " + " | ".join(specs) + " |", "|" + "---|" * (len(specs) + 1)]
+        for joint, by_engine in self.per_joint(metric, dataset).items():
+            lines.append(f"| {joint} | " + " | ".join(format_value(metric, by_engine[s]) for s in specs) + " |")
+        return "\n".join(lines)
+
     def per_clip_markdown(self, metric: str) -> str:
         """A table of ``metric`` with a row per clip (its frame count, then every engine's
         mean over the seeds) and a last row with the summary's mean over all rows."""
@@ -203,6 +231,7 @@ def run_benchmark(
     datasets: Mapping[str, str] | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
+    per_joint: bool = False,
 ) -> BenchResult:
     """Corrupt each clip with each seed, clean it with each engine, score it. Engines are
     spec strings or ready engine objects (keyed by their ``spec``); ``datasets``: each
@@ -214,7 +243,9 @@ def run_benchmark(
     With ``workers`` or ``scheduler`` (spec strings only) each (engine, clip) is a task
     on Dask distributed (:func:`workbench.batch.dask_client`), run with one thread, and
     ``peak_mb`` is a worker's; the rows' scores are then the same bit for bit whatever
-    the number of workers (the seconds are measured where each task ran)."""
+    the number of workers (the seconds are measured where each task ran). With
+    ``per_joint`` each row also holds :func:`workbench.metrics.per_joint` under
+    ``"per_joint"`` (for :meth:`BenchResult.per_joint`)."""
     result = BenchResult(
         corruption=str(parse_corruption(corruption)),
         seeds=list(seeds),
@@ -235,8 +266,10 @@ def run_benchmark(
         first = next(iter(result.skipped.items()))
         raise CorruptionApplyError(f"{result.corruption} fits none of the {len(clips)} clips; {first[0]}: {first[1]}")
     specs = [e if isinstance(e, str) else e.spec for e in engine_specs]
-    distributed = workers is not None or scheduler is not None
-    runner = _DaskRunner(specs, workers, scheduler) if distributed else _SerialRunner(engine_specs)
+    if workers is not None or scheduler is not None:
+        runner = _DaskRunner(specs, workers, scheduler, per_joint)
+    else:
+        runner = _SerialRunner(engine_specs, per_joint)
     with runner:
         for spec in specs:
             rows, refused = runner.rows(spec, cases, progress)
@@ -261,8 +294,9 @@ def run_benchmark(
 class _SerialRunner:
     """Cleans in this process, each engine made once."""
 
-    def __init__(self, engine_specs: Sequence[str | Engine]) -> None:
+    def __init__(self, engine_specs: Sequence[str | Engine], per_joint: bool) -> None:
         self.engines = {(e if isinstance(e, str) else e.spec): e for e in engine_specs}
+        self.per_joint = per_joint
 
     def __enter__(self):
         return self
@@ -276,7 +310,7 @@ class _SerialRunner:
         return self.engines[spec]
 
     def rows(self, spec, cases, progress):
-        return _clean_cases(self._engine(spec), cases, progress, spec)
+        return _clean_cases(self._engine(spec), cases, progress, spec, self.per_joint)
 
     def peak_mb(self, spec: str, observation: Observation) -> float:
         return _peak_mb(self._engine(spec), observation)
@@ -286,8 +320,8 @@ class _DaskRunner:
     """Cleans on Dask distributed, a task per (engine, clip), every engine's tasks
     submitted at once; rows come back in the serial order."""
 
-    def __init__(self, specs: list[str], workers: int | None, scheduler: str | None) -> None:
-        self.specs, self.workers, self.scheduler = specs, workers, scheduler
+    def __init__(self, specs: list[str], workers: int | None, scheduler: str | None, per_joint: bool) -> None:
+        self.specs, self.workers, self.scheduler, self.per_joint = specs, workers, scheduler, per_joint
         self.futures: dict = {}
 
     def __enter__(self):
@@ -309,7 +343,7 @@ class _DaskRunner:
             by_clip.setdefault(clip_id, []).append((clip_id, case))
         if not self.futures:  # every engine's tasks at once: the workers never wait for the next engine
             self.futures = {
-                (s, clip_id): self.client.submit(bench_task, s, clip_cases, pure=False)
+                (s, clip_id): self.client.submit(bench_task, s, clip_cases, self.per_joint, pure=False)
                 for s in self.specs
                 for clip_id, clip_cases in by_clip.items()
             }
@@ -327,11 +361,15 @@ class _DaskRunner:
 
 
 def _clean_cases(
-    engine: Engine, cases: Sequence[tuple[str, Case]], progress: Callable[[str], None] | None, spec: str
+    engine: Engine,
+    cases: Sequence[tuple[str, Case]],
+    progress: Callable[[str], None] | None,
+    spec: str,
+    per_joint: bool = False,
 ) -> tuple[list[dict], dict[str, str]]:
     """(rows, refused): ``engine`` timed and scored on each (clip, case), after a warm-up
-    (lazy imports, caches) outside the timed calls, its rows keyed by ``spec``; the clips
-    it refused, with its message."""
+    (lazy imports, caches) outside the timed calls, its rows keyed by ``spec`` (with
+    ``per_joint``, the scores by joint too); the clips it refused, with its message."""
     rows: list[dict] = []
     refused: dict[str, str] = {}
     warm = False
@@ -353,6 +391,8 @@ def _clean_cases(
             continue
         row = {"engine": spec, "clip": clip_id, "seed": case.seed, "frames": case.truth.n_frames, "seconds": dt}
         row.update(metrics.score(case.truth, cleaned.motion, case.observation.observed))
+        if per_joint:
+            row["per_joint"] = metrics.per_joint(case.truth, cleaned.motion, case.observation.observed)
         rows.append(row)
     return rows, refused
 
@@ -365,12 +405,12 @@ def _peak_mb(engine: Engine, observation: Observation) -> float:
     return max(resident_mb("VmHWM") - before, 0.0)
 
 
-def bench_task(spec: str, cases: list[tuple[str, Case]]) -> tuple[list[dict], dict[str, str]]:
+def bench_task(spec: str, cases: list[tuple[str, Case]], per_joint: bool = False) -> tuple[list[dict], dict[str, str]]:
     """:func:`_clean_cases` on a worker, with one thread and the worker's engine."""
     from .batch import one_thread, worker_engine
 
     with one_thread():
-        return _clean_cases(worker_engine(spec), cases, None, spec)
+        return _clean_cases(worker_engine(spec), cases, None, spec, per_joint)
 
 
 def peak_task(spec: str, observation: Observation) -> float:

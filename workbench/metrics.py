@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core.motion import Motion, angle_columns, position_unknown
+from .core.motion import Motion, angle_columns, angle_joints, position_unknown
 from .core.rotations import wrap_deg
 
 
@@ -128,6 +128,8 @@ def jitter_cm_s3(motion: Motion) -> float:
 
 #: the names :func:`score` returns, in the order of the benchmark's tables
 METRICS = ("rms_angle_deg", "mpjpe_cm", "gap_mpjpe_cm", "root_cm", "jitter_cm_s3")
+#: the metrics :func:`per_joint` splits by joint
+JOINT_METRICS = ("rms_angle_deg", "mpjpe_cm", "gap_mpjpe_cm")
 
 
 def score(truth: Motion, estimate: Motion, observed: np.ndarray | None = None) -> dict[str, float]:
@@ -141,4 +143,30 @@ def score(truth: Motion, estimate: Motion, observed: np.ndarray | None = None) -
     }
     if observed is not None and not np.asarray(observed, bool).all():
         out["gap_mpjpe_cm"] = gap_mpjpe_cm(truth, estimate, observed)
+    return out
+
+
+def per_joint(truth: Motion, estimate: Motion, observed: np.ndarray | None = None) -> dict[str, dict[str, float]]:
+    """The :data:`JOINT_METRICS` of one result by joint name: ``rms_angle_deg``, the RMS
+    error of the joint's joint-angle channels over all frames (the joints of
+    :func:`~workbench.core.motion.angle_joints`); ``mpjpe_cm``, the joint's mean
+    root-aligned position error (the :func:`body_joints` but the body root, which is
+    always 0); and, when ``observed`` (F, J) has missing entries, ``gap_mpjpe_cm``, that
+    error over the frames where the joint's position depends on missing data (as
+    :func:`gap_mpjpe_cm` counts them; NaN for a joint with none). Shows where the
+    headline numbers come from: a joint near gimbal lock, a hand on a short lever."""
+    names = truth.skeleton.names
+    joints = angle_joints(truth.skeleton)
+    square = angle_error_deg(truth, estimate).reshape(truth.n_frames, joints.size, 3) ** 2
+    error = joint_position_error_cm(truth, estimate)
+    moving = [j for j in body_joints(truth.skeleton) if j != truth.skeleton.body_root]
+    out = {
+        "rms_angle_deg": {names[j]: float(v) for j, v in zip(joints, np.sqrt(square.mean(axis=(0, 2))))},
+        "mpjpe_cm": {names[j]: float(error[:, j].mean()) for j in moving},
+    }
+    if observed is not None and not np.asarray(observed, bool).all():
+        unknown = position_unknown(observed, truth.skeleton.parents, truth.skeleton.translated)
+        out["gap_mpjpe_cm"] = {
+            names[j]: float(error[unknown[:, j], j].mean()) if unknown[:, j].any() else float("nan") for j in moving
+        }
     return out
