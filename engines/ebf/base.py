@@ -143,8 +143,15 @@ class WindowEngine(Engine):
 
     # -- shared work ----------------------------------------------------------------
     def _frame_data(self, observation: Observation) -> FrameData:
-        noise = getattr(self.params, "noise_context", False)
-        return frame_data(observation, Layout.of(observation.skeleton), self.norm_, self.WITH_MASK, noise)
+        p = self.params
+        return frame_data(
+            observation,
+            Layout.of(observation.skeleton),
+            self.norm_,
+            self.WITH_MASK,
+            getattr(p, "noise_context", False),
+            getattr(p, "smoothing_context", False),
+        )
 
     def clean(self, observation: Observation, /) -> CleanResult:
         """Clean the take in the engine's view of it (:meth:`model_view`: body-rooted, at the

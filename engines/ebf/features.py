@@ -16,7 +16,7 @@ from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
 from workbench.engine.signal import bridge_gaps
-from workbench.engine.smoothing import measurement_variance
+from workbench.engine.smoothing import measurement_variance, smoothing_ratio
 
 #: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
 RADIUS = 15
@@ -135,35 +135,60 @@ class FrameData:
         return self.X.shape[0]
 
 
-def noise_context(values: np.ndarray, observed: np.ndarray, norm: Normaliser) -> np.ndarray:
+def noise_context(
+    values: np.ndarray, observed: np.ndarray, norm: Normaliser, variance: np.ndarray | None = None
+) -> np.ndarray:
     """(C,) the take's own noise level per angle channel: the natural log of its white-noise
-    std (:func:`workbench.engine.smoothing.measurement_variance`, from the observed
-    samples' second differences over the whole take) in training stds of the channel,
-    clipped to :data:`NOISE_CONTEXT_RANGE`. ``values`` (F, C) degrees, ``observed`` (F, C)."""
-    r = measurement_variance(values, observed)
+    std (``variance`` (C,) deg^2, by default
+    :func:`workbench.engine.smoothing.measurement_variance`, from the observed samples'
+    second differences over the whole take) in training stds of the channel, clipped to
+    :data:`NOISE_CONTEXT_RANGE`. ``values`` (F, C) degrees, ``observed`` (F, C)."""
+    r = measurement_variance(values, observed) if variance is None else variance
     return np.clip(np.log(np.sqrt(r) / norm.angle_std), *NOISE_CONTEXT_RANGE)
 
 
+def smoothing_context(values: np.ndarray, observed: np.ndarray, variance: np.ndarray) -> np.ndarray:
+    """(C,) how much the take wants smoothing per angle channel: the natural log of the
+    width in frames, ``lambda^(1/4)``, of the constant-velocity smoother whose
+    ``lambda = r / q`` kalman would choose for the whole channel
+    (:func:`workbench.engine.smoothing.smoothing_ratio`: Stein's risk estimate on its
+    periodogram, given its noise ``variance`` (C,) deg^2). Fast motion under little noise
+    wants a narrow filter, slow motion under much noise a wide one; a 31-frame window
+    cannot tell which it sees, the whole take can. ``values`` (F, C) degrees (gaps
+    bridged), ``observed`` (F, C)."""
+    return np.log(smoothing_ratio(values, variance, observed.mean(axis=0))) / 4.0
+
+
 def frame_data(
-    observation: Observation, layout: Layout, norm: Normaliser, with_mask: bool, with_noise: bool = False
+    observation: Observation,
+    layout: Layout,
+    norm: Normaliser,
+    with_mask: bool,
+    with_noise: bool = False,
+    with_smoothing: bool = False,
 ) -> FrameData:
     """Network inputs of an observation: normalised angle channels and root angular
     velocity, plus (``with_mask``, EBD) the observed mask of the angle channels (0/1),
-    plus (``with_noise``) the take's :func:`noise_context`, the same on every frame."""
+    plus (``with_noise``) the take's :func:`noise_context` and (``with_smoothing``) its
+    :func:`smoothing_context`, each the same on every frame."""
     X = bridge_gaps(observation)
     values = anchor_turns(X[:, layout.columns], norm.angle_mean)
     X[:, layout.columns] = values
     missing = ~observation.channel_observed[:, layout.columns]
     F, C = values.shape
-    inputs = np.empty((F, C + 3 + (C if with_mask else 0) + (C if with_noise else 0)), np.float32)
+    n_context = (C if with_noise else 0) + (C if with_smoothing else 0)
+    inputs = np.empty((F, C + 3 + (C if with_mask else 0) + n_context), np.float32)
     velocity = layout.root_velocity(X, observation.motion.fps)
     for start in range(0, F, FEATURE_BLOCK):  # float64 arithmetic, float32 kept: no whole-take temporaries
         block = slice(start, start + FEATURE_BLOCK)
         inputs[block, : C + 3] = norm(np.concatenate([values[block], velocity[block]], axis=1))
     if with_mask:
         inputs[:, C + 3 : 2 * C + 3] = ~missing
-    if with_noise:
-        inputs[:, -C:] = noise_context(values, ~missing, norm)
+    if n_context:
+        r = measurement_variance(values, ~missing)
+        contexts = [noise_context(values, ~missing, norm, r)] if with_noise else []
+        contexts += [smoothing_context(values, ~missing, r)] if with_smoothing else []
+        inputs[:, -n_context:] = np.concatenate(contexts)
     return FrameData(X, values, inputs, missing)
 
 

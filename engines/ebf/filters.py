@@ -112,6 +112,10 @@ class FilterEngine(WindowEngine):
     def noise_context(self) -> bool:
         return getattr(self.params, "noise_context", False)
 
+    @property
+    def smoothing_context(self) -> bool:
+        return getattr(self.params, "smoothing_context", False)
+
     def _build_net(self, n_channels: int):
         import torch
 
@@ -120,7 +124,7 @@ class FilterEngine(WindowEngine):
         L, C = 2 * RADIUS + 1, n_channels
         n_out = (L if self.free else 1) * C + (C if self.bias else 0)
         net = WindowNet(
-            C + 3 + (C if self.noise_context else 0),
+            C + 3 + (C if self.noise_context else 0) + (C if self.smoothing_context else 0),
             n_out,
             encoder=self.ENCODER,
             recurrent=self.RECURRENT,
@@ -231,6 +235,9 @@ class EBF(FilterEngine):
         #: the network also sees the take's own noise level per channel (our addition;
         #: offline only: it is estimated over the whole take)
         noise_context: bool = trained(False)
+        #: the network also sees the width kalman would give each channel of the take
+        #: (our addition; offline only: it is chosen over the whole take)
+        smoothing_context: bool = trained(False)
         #: the predicted Gaussian weights a local quadratic fit instead of a mean (our
         #: addition: it follows peaks and fast motion that a mean flattens and lags)
         quadratic: bool = trained(False)

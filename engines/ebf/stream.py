@@ -74,9 +74,9 @@ class FilterStream:
         engine.use_weights_for(body)  # the committed weights trained for it, if any
         engine.require_fitted()
         engine.check_skeleton(body)
-        if getattr(engine.params, "noise_context", False):
+        if getattr(engine.params, "noise_context", False) or getattr(engine.params, "smoothing_context", False):
             raise EngineError(
-                f"engine {engine.spec!r} estimates each take's noise over the whole take, so it cannot "
+                f"engine {engine.spec!r} measures each take's noise over the whole take, so it cannot "
                 "stream; stream with plain 'ebf', or clean the take offline (`workbench clean`)"
             )
         if abs(fps - engine.fps_) > 1e-6:

@@ -17,6 +17,7 @@ from engines.ebf.features import (  # noqa: E402
     frame_data,
     noise_context,
     root_angular_velocity_dps,
+    smoothing_context,
     window_index,
 )
 from engines.ebf.nets import (  # noqa: E402
@@ -33,6 +34,7 @@ from workbench.core.channels import unwrap_deg  # noqa: E402
 from workbench.core.motion import Observation, angle_columns  # noqa: E402
 from workbench.corruption import parse_corruption  # noqa: E402
 from workbench.engine import EngineError, NotFittedError  # noqa: E402
+from workbench.engine.smoothing import measurement_variance  # noqa: E402
 
 torch.set_num_threads(1)
 L = 2 * RADIUS + 1
@@ -445,9 +447,28 @@ def test_noise_context_is_the_takes_own_noise_std_in_training_stds(walk):
     data = frame_data(obs, layout, norm, with_mask=False, with_noise=True)
     assert data.inputs.shape == (walk.n_frames, 2 * C + 3)
     assert np.allclose(data.inputs[:, -C:], context[None, :], atol=1e-6)
+    both = frame_data(obs, layout, norm, with_mask=False, with_noise=True, with_smoothing=True).inputs
+    width = smoothing_context(
+        values, np.ones_like(values, bool), measurement_variance(values, np.ones_like(values, bool))
+    )
+    assert both.shape == (walk.n_frames, 3 * C + 3) and np.array_equal(both[:, : 2 * C + 3], data.inputs)
+    assert np.allclose(both[:, -C:], width[None, :], atol=1e-6)
     holed = parse_corruption("gaps:0.05").apply(walk.with_channels(noisy), seed=0)
     with_gaps = frame_data(holed, layout, norm, with_mask=False, with_noise=True).inputs[0, -C:]
     assert np.median(np.abs(with_gaps - context)) < 0.1
+
+
+def test_smoothing_context_widens_with_the_noise_and_narrows_with_the_motion():
+    """The log width kalman's smoother would take: wider under more noise, narrower for
+    faster motion, each channel on its own; the frame data carries it after the noise."""
+    t = np.arange(600.0)
+    rng = np.random.default_rng(0)
+    slow, fast = np.sin(2 * np.pi * t / 200), np.sin(2 * np.pi * t / 20)
+    values = 10.0 * np.stack([slow, slow, fast], axis=1) + rng.normal(0.0, 1.0, (600, 3)) * [0.5, 2.0, 0.5]
+    variance = np.array([0.25, 4.0, 0.25])
+    width = smoothing_context(values, np.ones_like(values, bool), variance)
+    assert width.shape == (3,) and width[1] > width[0] > width[2]
+    assert np.exp(width[2]) < 3.0 < np.exp(width[0])  # frames
 
 
 def test_quadratic_variant_fits_and_cleans_and_is_not_a_free_filter(tiny):
@@ -459,10 +480,11 @@ def test_quadratic_variant_fits_and_cleans_and_is_not_a_free_filter(tiny):
         registry.create("ebf:quadratic=true,free=true", pretrained=False)
 
 
-def test_noise_context_variant_fits_cleans_and_refuses_to_stream(tiny):
-    engine = registry.create("ebf:noise_context=true,epochs=1,lstm_units=8,batch_windows=64", pretrained=False)
+@pytest.mark.parametrize("context", ["noise_context", "smoothing_context"])
+def test_take_context_variants_fit_clean_and_refuse_to_stream(tiny, context):
+    engine = registry.create(f"ebf:{context}=true,epochs=1,lstm_units=8,batch_windows=64", pretrained=False)
     engine.fit(tiny[:1])
-    assert engine.variant == "ebf-lstm_units8-noise_context"
+    assert engine.variant == f"ebf-lstm_units8-{context}"
     res = engine.clean(parse_corruption("angular:0.5").apply(tiny[1], seed=0))
     assert np.isfinite(res.motion.channels).all()
     with pytest.raises(EngineError, match="cannot stream"):
