@@ -25,8 +25,9 @@ per channel, position noise is not. ``noise_context=true`` (ours) also shows the
 the take's own noise std per channel (:func:`.features.noise_context`, as kalman estimates
 it): a 31-frame window cannot tell fast motion from noise, a whole take can (so it does not
 stream); ``smoothing_context=true`` (ours) likewise shows it the width kalman's smoother
-would take for each whole channel (:func:`.features.smoothing_context`). ``quadratic=true`` (ours) fits a parabola under the predicted Gaussian weights
-instead of taking their mean (:func:`.nets.local_quadratic_weights`): no flattened peaks.
+would take for each whole channel (:func:`.features.smoothing_context`).
+``quadratic=true`` (ours) fits a parabola under the predicted Gaussian weights instead
+of taking their mean (:func:`.nets.local_quadratic_weights`): no flattened peaks.
 Each variant has its own weights folder, ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
