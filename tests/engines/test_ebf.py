@@ -508,7 +508,9 @@ def test_ablations_have_committed_weights(name, walk):
     assert np.isfinite(res.motion.channels).all()
 
 
-@pytest.mark.parametrize("name", ["ebf:quadratic=true", "ebf:quadratic=true,noise_context=true"])
+@pytest.mark.parametrize(
+    "name", ["ebf:quadratic=true", "ebf:quadratic=true,noise_context=true", "ebf:quadratic=true,smoothing_context=true"]
+)
 def test_studio_variants_have_bandai_weights_only(name, studio_take, walk):
     engine = registry.create(name)
     res = engine.clean(parse_corruption("angular:0.5").apply(studio_take.slice(0, 60), seed=0))
