@@ -74,7 +74,7 @@ class FilterStream:
         engine.use_weights_for(body)  # the committed weights trained for it, if any
         engine.require_fitted()
         engine.check_skeleton(body)
-        if getattr(engine.params, "noise_context", False) or getattr(engine.params, "smoothing_context", False):
+        if engine.noise_context or engine.smoothing_context:  # each measured over the whole take
             raise EngineError(
                 f"engine {engine.spec!r} measures each take's noise over the whole take, so it cannot "
                 "stream; stream with plain 'ebf', or clean the take offline (`workbench clean`)"
