@@ -219,22 +219,26 @@ class Skeleton:
         """A copy with the given fields changed (validated as a new Skeleton)."""
         return dataclasses.replace(self, **changes)
 
-    def rest_height(self) -> float:
-        """Vertical extent of the rest pose (file units), end sites included; Y is up."""
+    def rest_height(self, axis: int = 1) -> float:
+        """Extent of the rest pose along ``axis`` (file units), end sites included; its
+        height where ``axis`` is up (Y, BVH's convention, by default)."""
         pos = np.zeros((self.n_joints, 3))
         for j, p in enumerate(self.parents):
             pos[j] = self.offsets[j] + (pos[p] if p >= 0 else 0.0)
-        ys = list(pos[:, 1]) + [pos[p, 1] + off[1] for p, off in self.end_sites]
+        ys = list(pos[:, axis]) + [pos[p, axis] + off[axis] for p, off in self.end_sites]
         return float(max(ys) - min(ys))
 
 
 def guess_unit_cm(skeleton: Skeleton) -> float:
-    """Guess the unit from the rest-pose height: the unit that makes it 120-220 cm.
+    """Guess the unit from the rest-pose height: the unit that makes it 120-220 cm, the
+    height measured along Y, else along Z or X (a rest pose standing on Z, as some
+    exporters write it; :mod:`workbench.core.upright`).
 
     Falls back to 1.0 (centimetres) when none fits.
     """
-    height = skeleton.rest_height()
-    for unit_cm, _name in _KNOWN_UNITS_CM:
-        if 120.0 <= height * unit_cm <= 220.0:
-            return unit_cm
+    for axis in (1, 2, 0):
+        height = skeleton.rest_height(axis)
+        for unit_cm, _name in _KNOWN_UNITS_CM:
+            if 120.0 <= height * unit_cm <= 220.0:
+                return unit_cm
     return 1.0

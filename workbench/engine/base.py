@@ -435,12 +435,13 @@ class Engine:
 
     # -- skeleton checks ------------------------------------------------------------
     def training_motions(self, motions: Sequence[Motion]) -> list[Motion]:
-        """``motions`` as a trained engine's ``fit`` takes them: in their body view, at
-        the model's rate.
+        """``motions`` as a trained engine's ``fit`` takes them: in their body view,
+        upright, at the model's rate.
 
         At least one, all of one skeleton layout; each is shown as the engine sees a
         take (:mod:`workbench.engine.view`): in its body view (a reference node above the
-        pelvis collapsed into it) and resampled to :attr:`MODEL_FPS` where the class sets
+        pelvis collapsed into it), turned upright where it stands on another axis than Y,
+        and resampled to :attr:`MODEL_FPS` where the class sets
         one; without it they must share one frame rate. A :attr:`skeleton_agnostic`
         variant takes several skeletons, each of which must map onto the canonical
         humanoid with every canonical joint, resampled to :attr:`MODEL_FPS` or else
@@ -463,14 +464,13 @@ class Engine:
             the body root moving by position channels; the message names the classical
             engines to clean such takes with).
         """
-        from .view import body_skeleton, resample, to_body
+        from .view import model_motion, resample
 
-        motions = list(motions)
         name = self.info.name
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
+        views = [model_motion(m) for m in motions]
         if self.skeleton_agnostic:  # each in its own body view; every skeleton must map, whole
-            views = [to_body(m, body_skeleton(m.skeleton)) for m in motions]
             for view in {v.skeleton.signature(): v for v in views}.values():
                 if lacking := self.humanoid(view.skeleton).lacking():  # a placeholder would train as truth
                     raise EngineError(
@@ -479,8 +479,8 @@ class Engine:
                         "(pin them with a mapping file, or leave these takes out)"
                     )
             return [resample(v, self.MODEL_FPS or UNIVERSAL_FPS) for v in views]
-        first = motions[0]
-        for m in motions[1:]:
+        first = views[0]
+        for m in views[1:]:
             if m.skeleton.signature() != first.skeleton.signature():
                 raise EngineError(
                     f"engine {name!r} trains on one skeleton layout; {first.name or 'motion 0'} "
@@ -492,9 +492,8 @@ class Engine:
                     f"engine {name!r}: the training motions mix frame rates ({first.fps:g} and {m.fps:g} fps); "
                     "train on takes of one rate"
                 )
-        body = body_skeleton(first.skeleton)
         fps = first.fps if self.MODEL_FPS is None else self.MODEL_FPS
-        return [resample(to_body(m, body), fps) for m in motions]
+        return [resample(v, fps) for v in views]
 
     def fitted_on(self, motion: Motion) -> None:
         """Record what ``fit`` fitted for: the skeleton layout (:attr:`skeleton_signature_`)
@@ -508,8 +507,9 @@ class Engine:
 
         Picks the committed weights trained for the take's skeleton when this engine
         runs on committed weights (:meth:`use_weights_for`), checks the skeleton
-        (:meth:`check_skeleton`) and shows the take in its body view at :attr:`fps_`
-        (:class:`workbench.engine.view.ModelView`; ``restore`` puts a result back).
+        (:meth:`check_skeleton`) and shows the take in its body view, upright, at
+        :attr:`fps_` (:class:`workbench.engine.view.ModelView`; ``restore`` puts a result
+        back).
 
         Parameters
         ----------
@@ -527,14 +527,16 @@ class Engine:
         EngineError
             A skeleton it has no weights for, or one no trained engine models.
         """
-        from .view import ModelView, body_skeleton
+        from ..core.upright import up_turn
+        from .view import ModelView, model_skeleton
 
-        body = body_skeleton(observation.skeleton)
+        turn = up_turn(observation.motion)
+        body = model_skeleton(observation.skeleton, turn)
         self.use_weights_for(body)
         self.require_fitted()
         self.check_skeleton(body)
         self.weights_used_ = self.weights_description()
-        return ModelView.of(observation, self.fps_, body)
+        return ModelView.of(observation, self.fps_, turn)
 
     def weights_description(self) -> str | None:
         """ "universal weights FOLDER" or "skeleton-specific weights FOLDER" for the weights
@@ -908,9 +910,10 @@ class Engine:
         arguments of ``clean``), with :attr:`weights_used_` set to its weights; None where
         this engine has weights of its own for the take's skeleton (or no twin), so that
         a trained engine's ``clean`` starts with it."""
-        from .view import body_skeleton
+        from ..core.upright import up_turn
+        from .view import model_skeleton
 
-        twin = self.universal_twin(body_skeleton(observation.skeleton))
+        twin = self.universal_twin(model_skeleton(observation.skeleton, up_turn(observation.motion)))
         if twin is None:
             return None
         result = twin.clean(observation, **options)

@@ -13,6 +13,9 @@ puts the result back (:class:`ModelView`):
   The result is back in the take's skeleton with the reference joints above the body
   root as observed (gaps bridged) and the body root's local transform under them
   (:func:`from_body`). A skeleton whose root is the body root is its own body view.
+- **Upright** (:mod:`workbench.core.upright`): a take whose head stands above its feet
+  along another axis than +Y (a Z-up export) is turned onto +Y by relabelling axes,
+  exactly, and turned back after: the models' headings and floors are about Y.
 - **Rate** (:func:`resample`): channels are resampled linearly in time (angles
   unwrapped) to the model's rate, and the result back to the take's frames. A resampled
   frame is observed where both take frames around it are. At a whole ratio (30 to 120
@@ -35,10 +38,20 @@ from ..core.channels import interpolate_frames, unwrap_deg
 from ..core.motion import Motion, Observation, angle_slice, channel_count
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
+from ..core.upright import turn_motion, turn_skeleton, turn_vectors, up_turn
 from .base import CLASSICAL, CleanResult, EngineError
 from .signal import rewrap_angles
 
-__all__ = ["body_skeleton", "body_joints", "to_body", "from_body", "resample", "ModelView"]
+__all__ = [
+    "body_skeleton",
+    "body_joints",
+    "to_body",
+    "from_body",
+    "model_skeleton",
+    "model_motion",
+    "resample",
+    "ModelView",
+]
 
 #: frame rates closer than this are the same rate
 SAME_FPS = 1e-6
@@ -129,6 +142,22 @@ def from_body(motion: Motion, carrier: Motion) -> Motion:
     return carrier.replace(angles_deg=angles, translations=translations)
 
 
+def model_skeleton(skeleton: Skeleton, turn: np.ndarray | None) -> Skeleton:
+    """The skeleton a trained engine models a take of ``skeleton`` in: its
+    :func:`body_skeleton`, turned by ``turn`` (:func:`workbench.core.upright.up_turn`)
+    where the take is not upright."""
+    body = body_skeleton(skeleton)
+    return body if turn is None else turn_skeleton(body, turn)
+
+
+def model_motion(motion: Motion) -> Motion:
+    """A training take as a trained engine models it: in its body view, upright, at its
+    own rate (the caller resamples)."""
+    turn = up_turn(motion)
+    body = to_body(motion, body_skeleton(motion.skeleton))
+    return body if turn is None else turn_motion(body, turn)
+
+
 def _unwrapped(motion: Motion) -> np.ndarray:
     X = motion.channels
     angles = angle_slice(motion.skeleton)
@@ -180,25 +209,27 @@ class ModelView:
     source: Observation
     observation: Observation
     bridged: Motion | None = field(default=None, repr=False)
+    turn: np.ndarray | None = field(default=None, repr=False)
 
     @classmethod
-    def of(cls, source: Observation, fps: float, body: Skeleton | None = None) -> "ModelView":
-        """The view of ``source`` at ``fps`` (``body``: its :func:`body_skeleton`, when
-        the caller has it)."""
+    def of(cls, source: Observation, fps: float, turn: np.ndarray | None = None) -> "ModelView":
+        """The view of ``source`` at ``fps``, turned by ``turn`` (the take's
+        :func:`~workbench.core.upright.up_turn`, which the caller has found; None: upright)."""
         skeleton = source.skeleton
-        body = body_skeleton(skeleton) if body is None else body
+        body = body_skeleton(skeleton)
         interpolated = abs(source.motion.fps - fps) > SAME_FPS and source.n_frames >= 2
         bridged = source.bridged() if interpolated or skeleton.body_root else None
         observed = source.observed[:, body_joints(skeleton)].copy()
         observed[:, 0] = source.observed[:, list(skeleton.root_chain)].all(axis=1)
         step = max(source.capture_step * fps / source.motion.fps, 1.0) if interpolated else source.capture_step
+        view = to_body(bridged if interpolated else source.motion, body)
+        if turn is not None:
+            view = turn_motion(view, turn)
         if interpolated:
             t = _frame_times(source.n_frames, source.motion.fps, fps)
             observed = _resample_frames(observed.astype(float), t) > 1 - 1e-9  # both frames around observed
-            view = resample(to_body(bridged, body), fps)
-        else:
-            view = resample(to_body(source.motion, body), fps)  # at most a new rate for one frame
-        return cls(source, Observation(view, observed, step), bridged)
+        view = resample(view, fps)  # without interpolation, at most a new rate for one frame
+        return cls(source, Observation(view, observed, step), bridged, turn)
 
     def joint(self, j: int) -> int:
         """The view's index of the take's joint ``j`` (the body root or below it)."""
@@ -214,7 +245,8 @@ class ModelView:
 
     @property
     def changed(self) -> bool:
-        """The view differs from the take: another skeleton or another rate."""
+        """The view differs from the take: another skeleton (its body view, or turned
+        upright) or another rate."""
         view, source = self.observation, self.source
         return view.skeleton is not source.skeleton or abs(view.motion.fps - source.motion.fps) > SAME_FPS
 
@@ -227,16 +259,21 @@ class ModelView:
         on the result's branch), as an engine that keeps them promises. Each diagnostic
         (F_view, ...) is resampled along frames; one over the view's channel matrix
         (F, D_view) or its joints (F, J_view, ...) is spread over the take's, zero where
-        the view has no counterpart; one named ``*_frames`` is rescaled to take frames.
+        the view has no counterpart; one named ``*_frames`` is rescaled to take frames,
+        and one of a view turned upright is turned back (:meth:`_unturned`).
         """
         if not self.changed:
             return result
         source, view = self.source, self.observation
         fps_view, fps_take = view.motion.fps, source.motion.fps
-        t = np.arange(source.n_frames, dtype=float)  # the take's frames, in view frames:
-        if view.n_frames != source.n_frames:
-            t = np.interp(t, _frame_times(source.n_frames, fps_take, fps_view), np.arange(view.n_frames))
-        motion = result.motion.replace(fps=fps_take).with_channels(_resample_frames(_unwrapped(result.motion), t))
+        motion, t = result.motion.replace(fps=fps_take), None  # t: the take's frames in view frames
+        if view.n_frames != source.n_frames:  # else the same frames: no resampling, no roundoff
+            t = np.interp(
+                np.arange(source.n_frames), _frame_times(source.n_frames, fps_take, fps_view), np.arange(view.n_frames)
+            )
+            motion = motion.with_channels(_resample_frames(_unwrapped(result.motion), t))
+        if self.turn is not None:
+            motion = turn_motion(motion, self.turn.T, body_skeleton(source.skeleton))
         if source.skeleton.body_root:
             motion = from_body(motion, self.bridged)
         X = rewrap_angles(motion.channels, source, copy=False)
@@ -246,16 +283,35 @@ class ModelView:
         motion = motion.with_channels(X)
         diagnostics = {}
         for name, value in result.diagnostics.items():
-            value = _resample_frames(np.asarray(value, float), t)
+            value = np.asarray(value, float)
+            value = self._unturned(name, value if t is None else _resample_frames(value, t))
             if name.endswith("_frames"):
                 value = value * (fps_take / fps_view)
             diagnostics[name] = self._spread(value)
         return CleanResult(motion, diagnostics)
 
+    def _unturned(self, name: str, value: np.ndarray) -> np.ndarray:
+        """A diagnostic of the upright view in the take's axes: one named ``*_positions``
+        (world positions (..., 3)) turned back; one over the view's channel matrix (F, D)
+        with the columns of its lengths (root position, translations) put back in the
+        take's axes, unsigned (a width or a weight per channel); any other as it is
+        (joints and angles keep their places when turned)."""
+        if self.turn is None:
+            return value
+        if name.endswith("_positions"):
+            return turn_vectors(value, self.turn.T)
+        body = self.observation.skeleton
+        if value.ndim != 2 or value.shape[1] != channel_count(body):
+            return value
+        value = value.copy()
+        for c in np.r_[0:3, angle_slice(body).stop : value.shape[1]].reshape(-1, 3):
+            value[:, c] = turn_vectors(value[:, c], np.abs(self.turn.T))
+        return value
+
     def _spread(self, value: np.ndarray) -> np.ndarray:
         """A diagnostic over the view's channels or joints, over the take's."""
         skeleton, body = self.source.skeleton, self.observation.skeleton
-        if body is skeleton:
+        if skeleton.body_root == 0:  # the view has the take's joints and channels, in place
             return value
         F = value.shape[0]
         if value.ndim >= 2 and value.shape[1] == body.n_joints:

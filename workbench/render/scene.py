@@ -3,7 +3,8 @@ or one pane per engine), a floor grid, joints coloured by their current error on
 colour scale (drawn beside the scene, by :func:`workbench.plots.style.error_mappable`),
 the ground truth faded into the cleaned panes, missing joints grey.
 
-Units: positions in the take's file unit (``unit_cm`` cm each), Y up; errors in cm;
+Units: positions in the take's file unit (``unit_cm`` cm each), Y up (a take standing on
+another axis is shown turned upright, :func:`skeleton_points`); errors in cm;
 pixel coordinates have their origin at the window's top left, x to the right, in
 render-window pixels.
 
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.upright import turn_vectors, up_turn
 from ..plots.style import JOINTS, MISSING, PLAIN, TEXT, TRUTH, error_cmap
 
 BACKGROUND = "#f3f5f8"  # flat: a gradient costs half again per frame in software
@@ -48,8 +50,12 @@ PICK_RADIUS_PX = 14
 
 
 def skeleton_points(motion) -> np.ndarray:
-    """(F, J + E, 3) joint positions then End Site positions, in file units."""
-    return np.concatenate([motion.positions, motion.end_site_positions()], axis=1)
+    """(F, J + E, 3) joint positions then End Site positions, in file units, turned
+    upright (Y up) where the take stands on another axis
+    (:func:`workbench.core.upright.up_turn`)."""
+    points = np.concatenate([motion.positions, motion.end_site_positions()], axis=1)
+    turn = up_turn(motion)
+    return points if turn is None else turn_vectors(points, turn)
 
 
 def bone_lines(skeleton) -> np.ndarray:
