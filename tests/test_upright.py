@@ -84,3 +84,15 @@ def test_a_take_standing_on_z_is_cleaned_exactly_as_the_same_take_standing_on_y(
 def test_the_app_shows_a_take_standing_on_z_upright(walk):
     turned = turn_motion(walk, TURNS[0])
     assert np.allclose(skeleton_points(turned), skeleton_points(walk), atol=1e-9)
+
+
+def test_a_z_up_file_reads_back_as_written_and_the_skeleton_command_says_where_up_is(walk, tmp_path, capsys):
+    from workbench.cli import main
+    from workbench.io import read_bvh, write_bvh
+
+    path = tmp_path / "z_up.bvh"
+    write_bvh(path, turn_motion(walk, TURNS[0]))
+    read = read_bvh(path)
+    assert read.skeleton.unit_cm == 5.64 and read.allclose(turn_motion(walk, TURNS[0]), atol=1e-6)
+    assert main(["skeleton", str(path)]) == 0
+    assert "unit: 5.64 cm; up: +Z (turned onto +Y" in capsys.readouterr().out

@@ -136,6 +136,7 @@ def _read(path: str):
 
 def cmd_skeleton(args) -> int:
     from .core.humanoid import map_humanoid
+    from .core.upright import up_turn
     from .io.mapping import read_mapping
 
     motion = _read(args.take)
@@ -143,8 +144,14 @@ def cmd_skeleton(args) -> int:
     print(
         f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
     )
-    mapping = map_humanoid(s, read_mapping(args.mapping) if args.mapping else None)
-    print(mapping.describe())
+    overrides = read_mapping(args.mapping) if args.mapping else None
+    print(map_humanoid(s, overrides).describe())
+    turn = up_turn(motion, overrides)
+    up = "+Y" if turn is None else "".join(f"{'+' if v > 0 else '-'}{a}" for a, v in zip("XYZ", turn[1]) if v)
+    print(
+        f"unit: {s.unit_cm:g} cm; up: {up}"
+        + ("" if turn is None else " (turned onto +Y for the trained engines and the app)")
+    )
     return 0
 
 

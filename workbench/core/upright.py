@@ -19,6 +19,8 @@ Units: positions in the take's file unit.
 
 from __future__ import annotations
 
+from typing import Mapping
+
 import numpy as np
 
 from .humanoid import HumanoidError, map_humanoid
@@ -43,7 +45,7 @@ _TURNS = {
 }
 
 
-def up_turn(motion: Motion) -> np.ndarray | None:
+def up_turn(motion: Motion, overrides: Mapping[str, str | None] | None = None) -> np.ndarray | None:
     """The turn (3, 3) that stands ``motion`` on +Y, or None where it already stands on
     +Y, or where it cannot tell (a skeleton with no humanoid mapping, no frame with the
     head and both feet, no axis its head leans along by :data:`UP_SHARE` of the body
@@ -53,6 +55,8 @@ def up_turn(motion: Motion) -> np.ndarray | None:
     ----------
     motion : Motion
         The take (NaN where it is missing; those frames do not count).
+    overrides : Mapping, optional
+        The user's mapping file, as :func:`~workbench.core.humanoid.map_humanoid` takes it.
 
     Returns
     -------
@@ -62,7 +66,7 @@ def up_turn(motion: Motion) -> np.ndarray | None:
     """
     skeleton = motion.skeleton
     try:
-        mapping = map_humanoid(skeleton)
+        mapping = map_humanoid(skeleton, overrides)
     except HumanoidError:
         return None
     head, feet = mapping.joint("head"), [mapping.joint("left_foot"), mapping.joint("right_foot")]

@@ -469,7 +469,7 @@ class Engine:
         name = self.info.name
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
-        views = [model_motion(m) for m in motions]
+        views = [model_motion(m, self.humanoid_overrides) for m in motions]
         if self.skeleton_agnostic:  # each in its own body view; every skeleton must map, whole
             for view in {v.skeleton.signature(): v for v in views}.values():
                 if lacking := self.humanoid(view.skeleton).lacking():  # a placeholder would train as truth
@@ -530,7 +530,7 @@ class Engine:
         from ..core.upright import up_turn
         from .view import ModelView, model_skeleton
 
-        turn = up_turn(observation.motion)
+        turn = up_turn(observation.motion, self.humanoid_overrides)
         body = model_skeleton(observation.skeleton, turn)
         self.use_weights_for(body)
         self.require_fitted()
@@ -913,7 +913,9 @@ class Engine:
         from ..core.upright import up_turn
         from .view import model_skeleton
 
-        twin = self.universal_twin(model_skeleton(observation.skeleton, up_turn(observation.motion)))
+        twin = self.universal_twin(
+            model_skeleton(observation.skeleton, up_turn(observation.motion, self.humanoid_overrides))
+        )
         if twin is None:
             return None
         result = twin.clean(observation, **options)

@@ -31,6 +31,7 @@ count frames and are rescaled to the take's frames on the way back.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Mapping
 
 import numpy as np
 
@@ -150,10 +151,11 @@ def model_skeleton(skeleton: Skeleton, turn: np.ndarray | None) -> Skeleton:
     return body if turn is None else turn_skeleton(body, turn)
 
 
-def model_motion(motion: Motion) -> Motion:
-    """A training take as a trained engine models it: in its body view, upright, at its
-    own rate (the caller resamples)."""
-    turn = up_turn(motion)
+def model_motion(motion: Motion, overrides: Mapping[str, str | None] | None = None) -> Motion:
+    """A training take as a trained engine models it: in its body view, upright
+    (``overrides``: the user's humanoid mapping, to find its up), at its own rate (the
+    caller resamples)."""
+    turn = up_turn(motion, overrides)
     body = to_body(motion, body_skeleton(motion.skeleton))
     return body if turn is None else turn_motion(body, turn)
 
