@@ -389,3 +389,42 @@ def test_a_hierarchy_nested_ten_thousand_deep_reads_and_writes_back(tmp_path):
     write_bvh(tmp_path / "again.bvh", motion)
     again = read_bvh(tmp_path / "again.bvh")
     assert again.skeleton.signature() == motion.skeleton.signature() and again.allclose(motion)
+
+
+SIX_DECIMALS_IN_METRES = """HIERARCHY
+ROOT pelvis
+{
+  OFFSET 0.000000 0.000000 0.000000
+  CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation
+  JOINT spine
+  {
+    OFFSET 0.000000 0.400000 0.000000
+    CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation
+    JOINT jaw
+    {
+      OFFSET 0.000000 0.016750 0.000000
+      CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation
+      End Site
+      {
+        OFFSET 0.000000 0.010000 0.000000
+      }
+    }
+  }
+}
+MOTION
+Frames: 2
+Frame Time: 0.041667
+0.1 0.9 0.0 0 0 0 0.000000 0.400000 0.000000 0 0 0 0.000000 0.016750 0.000000 0 0 0
+0.1 0.9 0.0 0 0 0 0.000000 0.400000 0.000000 0 0 0 0.000001 0.016751 0.000000 0 0 0
+"""
+
+
+def test_translations_that_differ_in_the_last_printed_decimal_are_folded(tmp_path):
+    """An SMPL-X export in metres, 6 decimals: float32 rounding flips a 1.7-cm bone's last
+    digit between frames (6e-5 of its length, but 3e-6 of the skeleton's longest OFFSET);
+    it is one translation as printed, so no trained engine refuses the take."""
+    path = tmp_path / "smplx.bvh"
+    path.write_text(SIX_DECIMALS_IN_METRES)
+    m = read_bvh(path)
+    assert m.skeleton.translated == ()
+    np.testing.assert_array_equal(m.skeleton.offsets[2], [0.0, 0.01675, 0.0])

@@ -338,15 +338,18 @@ def _column_layout(skeleton: Skeleton) -> list[tuple[int, bool, int]]:
     return layout
 
 
-#: how close, relative to their size, two translations print as one: exporters print 6
-#: significant digits (MotionBuilder: -5.51765e-07 in one frame, -5.51764e-07 in the next)
+#: how close, relative to their size or the skeleton's, two translations print as one:
+#: exporters print 6 significant digits (MotionBuilder: -5.51765e-07 in one frame,
+#: -5.51764e-07 in the next) or 6 decimals (an SMPL-X export in metres: a 1.7-cm jaw
+#: bone at 0.016750 in one frame and 0.016751 in the next, from float32 rounding)
 SAME_RELATIVE = 1e-5
 
 
-def _same_translation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _same_translation(a: np.ndarray, b: np.ndarray, size: float) -> np.ndarray:
     """Whether translations ``a`` and ``b`` (..., 3), in file units, are one as printed:
-    within :data:`SAME_RELATIVE` of the larger's length (and 1e-9 units)."""
-    scale = np.maximum(np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1))
+    within :data:`SAME_RELATIVE` of the larger's length or of ``size`` (the skeleton's
+    longest OFFSET), and 1e-9 units."""
+    scale = np.maximum(np.maximum(np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)), size)
     return np.linalg.norm(a - b, axis=-1) <= SAME_RELATIVE * scale + 1e-9
 
 
@@ -370,7 +373,8 @@ def _motion_from_values(header: Skeleton, fps: float, values: np.ndarray, name: 
         else:
             angles[:, j, slot] = values[:, col]
     angles.setflags(write=False)  # the Motion takes it as it is: a long take's 50 MB are not copied
-    rest = _same_translation(local[:, 1:], header.file_offsets[positioned]).all(axis=0)  # NaN is no rest
+    size = float(np.linalg.norm(header.file_offsets, axis=1).max())
+    rest = _same_translation(local[:, 1:], header.file_offsets[positioned], size).all(axis=0)  # NaN is no rest
     moving = positioned[~rest]
     offsets = np.array(header.offsets)
     offsets[positioned[rest]] = local[0, 1:][rest]
