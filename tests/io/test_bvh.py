@@ -428,3 +428,12 @@ def test_translations_that_differ_in_the_last_printed_decimal_are_folded(tmp_pat
     m = read_bvh(path)
     assert m.skeleton.translated == ()
     np.testing.assert_array_equal(m.skeleton.offsets[2], [0.0, 0.01675, 0.0])
+
+
+def test_more_frame_lines_than_frames_says_which_line_to_fix(tmp_path):
+    """An export whose 'Frames:' line counts one frame fewer than it wrote (assimp's
+    Boxing_Toes.bvh): refused, naming both ways to mend it."""
+    path = tmp_path / "extra.bvh"
+    path.write_text(ROOT_WITH_OFFSET + ROOT_WITH_OFFSET.splitlines()[-1] + "\n")
+    with pytest.raises(MotionFileError, match=r"says 3 but 4 frame lines follow; .* set 'Frames:' to 4, else delete"):
+        read_bvh(path)

@@ -270,7 +270,12 @@ def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, pat
             first + len(body) - 1 if body else first - 1,
         )
     if len(body) > n_frames:
-        raise MotionFileError(path, f"'Frames:' says {n_frames} but {len(body)} frame lines follow", first + n_frames)
+        raise MotionFileError(
+            path,
+            f"'Frames:' says {n_frames} but {len(body)} frame lines follow; if they are all frames of the take, "
+            f"set 'Frames:' to {len(body)}, else delete the lines after frame {n_frames}",
+            first + n_frames,
+        )
     values = np.empty((n_frames, D))
     for n, line in enumerate(body):  # a line at a time: memory of the values, not of their words
         text = line.strip()
