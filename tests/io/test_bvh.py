@@ -29,10 +29,13 @@ def test_reads_every_shared_clip(shared_takes):
     for f, m in shared_takes:
         assert np.isfinite(m.channels).all(), f
         sk = m.skeleton
-        layouts.add(
-            (m.fps, sk.n_joints, sk.rotation_orders[1], tuple(sk.names[j] for j in sk.translated), sk.root_chain)
-        )
-    assert layouts == {(120.0, 31, "ZYX", (), (0,)), (120.0, 43, "ZXY", (), (0,)), (30.0, 22, "ZXY", ("Hips",), (0, 1))}
+        translated = tuple(sk.names[j] for j in sk.translated)
+        layouts.add((m.fps, sk.n_joints, sk.rotation_orders[1], translated, sk.root_chain, sk.unit_cm))
+    assert layouts == {  # the unit too: one Bandai take's rest pose is 37.6 units deep, 212 cm in CMU's units
+        (120.0, 31, "ZYX", (), (0,), 5.64),
+        (120.0, 43, "ZXY", (), (0,), 1.0),
+        (30.0, 22, "ZXY", ("Hips",), (0, 1), 1.0),
+    }
 
 
 @pytest.mark.slow

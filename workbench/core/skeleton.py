@@ -231,13 +231,13 @@ class Skeleton:
 
 def guess_unit_cm(skeleton: Skeleton) -> float:
     """Guess the unit from the rest-pose height: the unit that makes it 120-220 cm, the
-    height measured along Y, else along Z or X (a rest pose standing on Z, as some
-    exporters write it; :mod:`workbench.core.upright`).
+    height measured along Y, else along the axis the rest pose is longest on (a rest pose
+    standing on Z, as some exporters write it; :mod:`workbench.core.upright`).
 
     Falls back to 1.0 (centimetres) when none fits.
     """
-    for axis in (1, 2, 0):
-        height = skeleton.rest_height(axis)
+    extents = [skeleton.rest_height(axis) for axis in range(3)]
+    for height in (extents[1], max(extents)):
         for unit_cm, _name in _KNOWN_UNITS_CM:
             if 120.0 <= height * unit_cm <= 220.0:
                 return unit_cm
