@@ -62,6 +62,19 @@ def test_a_flip_is_a_turn(embedded_walk):
     assert "frames 99-102: turn" in str(turns[0])
 
 
+def test_a_body_that_leaves_its_path_is_a_jump(embedded_walk, studio_take):
+    """Three frames of the walk put 1 m off (a marker swap on the pelvis, stray frames of
+    an exporter): the steps out and back are faster than a body moves; the clean walk
+    and the studio take (its Hips carried under a reference node) have none."""
+    root = embedded_walk.root_positions.copy()
+    root[100:103, 0] += 100.0 / embedded_walk.skeleton.unit_cm
+    intervals = inspect_motion(embedded_walk.replace(root_positions=root)).intervals()
+    jumps = [i for i in intervals if i.reason == "jump"]
+    assert [(i.first, i.last, i.joints) for i in jumps] == [(99, 103, ("Hips",))]
+    assert jumps[0].score == pytest.approx(120.0, rel=0.01)  # m/s: 1 m (and a step) in a 120th of a second
+    assert not inspect_motion(embedded_walk).flags["jump"].any() and not inspect_motion(studio_take).flags["jump"].any()
+
+
 def test_bone_lengths_that_vary_are_flagged(stretchy_take, studio_take):
     found = inspect_motion(stretchy_take)
     bones = [i for i in found.intervals() if i.reason == "bone"]

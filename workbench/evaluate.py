@@ -433,7 +433,7 @@ def peak_task(spec: str, observation: Observation) -> float:
 INSPECTION_CASES = (
     ("spikes", "outliers:0.01", ("spike", "turn", "rejected", "disagree")),
     ("linear fills", "gaps:0.01", ("linear",)),
-    ("glitches", "none", ("spike", "turn", "linear", "bone")),
+    ("glitches", "none", ("spike", "turn", "jump", "linear", "bone")),
 )
 SPIKE_TRUTH_DEG = 10.0  # every outlier turns its joint by at least 30 degrees
 #: significant digits the linear fills are printed with

@@ -98,3 +98,28 @@ def test_no_ground_truth_says_so(clean_take):
     panes = scene_panes(clean_take, ["identity"], {}, compare=False)
     assert panes[-1].points is None and "no ground truth" in panes[-1].note
     assert panes[1].note == "running...", "an engine without a result yet"
+
+
+def test_frames_a_kilometre_off_are_shown_but_not_framed(take):
+    """An exporter's stray frames put the body 1.5 km off, and an engine thrown by them
+    puts joints tens of metres off elsewhere: the floor and camera fit the body where it
+    is, and the floor stays a few metres of grid (it once tried to cover 3 km by the metre,
+    and the app ran out of memory)."""
+    from workbench.render import Pane, skeleton_points
+
+    motion = take.motion
+    root = motion.root_positions.copy()
+    root[:5] += 150_000.0 / motion.skeleton.unit_cm  # 1.5 km
+    stray = motion.replace(root_positions=root)
+    thrown = skeleton_points(motion).copy()
+    thrown[10:20, 3] += 4_000.0 / motion.skeleton.unit_cm  # a joint 40 m off the body
+    panes = [Pane("stray", skeleton_points(stray)), Pane("thrown", thrown)]
+    plotter = new_plotter(2, SIZE)
+    try:
+        scene = SkeletonScene(plotter, panes, motion.skeleton, skeleton_points(stray)[:, 0], (0.0, 5.0))
+        body = skeleton_points(motion)[..., 1]
+        assert scene.floor_y == pytest.approx(np.min(body)) and scene.height == pytest.approx(np.ptp(body))
+        floor = plotter.renderers[0].actors  # the floor's plane and its grid
+        assert max(a.GetMapper().GetInput().GetNumberOfCells() for a in floor.values()) < 10_000
+    finally:
+        plotter.close()

@@ -1,6 +1,6 @@
 """Which frames of a take are broken: suspicious intervals, each with its reason.
 
-Four rules that need no ground truth and no engine, each flagging samples (frame, joint):
+Five rules that need no ground truth and no engine, each flagging samples (frame, joint):
 
 - ``spike``: a joint's rotation far from where its neighbours put it. The prediction is the
   geodesic midpoint of frames t-1 and t+1, and of t-2 and t+2 (a spike two frames long
@@ -10,6 +10,10 @@ Four rules that need no ground truth and no engine, each flagging samples (frame
   take at 30 fps predicts worse). Chosen on the CMU train split and the Bandai
   validation split with ``outliers:0.01``.
 - ``turn``: a joint turning faster than a body can (:func:`.quality.reference_glitches`).
+- ``jump``: the body root moving faster than a body can between two frames, above
+  :data:`JUMP_SPEED_M_S` (a dropped stretch of frames, a marker swap on the pelvis, an
+  exporter's stray frames that put the body a kilometre off); both frames of the step
+  are flagged, on the body root.
 - ``linear``: a moving joint whose channels lie exactly on a line, to the file's printed
   precision, for at least :data:`LINEAR_MIN_FRAMES` frames: a gap an exporter filled by
   linear interpolation (real motion always bends).
@@ -48,6 +52,10 @@ SPIKE_SCALE = 6.0
 LINEAR_MIN_FRAMES = 2
 #: a channel moving less than this per frame (degrees or file units) is at rest, not filled
 LINEAR_MIN_STEP = 0.01
+#: metres per second the body root cannot move at between two frames: sprinters peak near
+#: 12; the shared takes' runs and dashes reach 5.2, and the one step above 10 is a capture
+#: fault (CMU 03_02 holds its first pose for 23 frames, then jumps 11 cm)
+JUMP_SPEED_M_S = 10.0
 #: relative change of a bone's length that counts as a stretch
 BONE_TOLERANCE = 0.02
 #: a robust engine's data weight below this is a rejected sample (Welsch: exp(-r^2 / p^2) < 0.1
@@ -63,6 +71,7 @@ MERGE_FRAMES = 3
 REASONS = {
     "spike": "rotation far off its neighbours'",
     "turn": "turns faster than a body can",
+    "jump": "moves faster than a body can",
     "linear": "channels on a straight line (a linear fill)",
     "bone": "bone length varies",
     "missing": "no sample (a gap in the observed mask)",
@@ -173,6 +182,24 @@ def turn_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return flags, scores
 
 
+def jump_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """(flags (F, J) bool, the step's speed (F, J) m/s) of the ``jump`` rule, on the body
+    root: both frames of each step it moves faster than :data:`JUMP_SPEED_M_S`."""
+    F, J = motion.n_frames, motion.skeleton.n_joints
+    flags, speeds = np.zeros((F, J), bool), np.zeros((F, J))
+    if F < 2:
+        return flags, speeds
+    b = motion.skeleton.body_root
+    path_m = motion.positions[:, b] * (motion.skeleton.unit_cm / 100.0)
+    speed = np.linalg.norm(np.diff(path_m, axis=0), axis=1) * motion.fps
+    fast = speed > JUMP_SPEED_M_S  # NaN (a missing root) is not fast
+    flags[:-1, b] |= fast
+    flags[1:, b] |= fast
+    speeds[:-1, b] = np.where(fast, speed, 0.0)
+    speeds[1:, b] = np.maximum(speeds[1:, b], np.where(fast, speed, 0.0))
+    return flags, speeds
+
+
 def rejected_flags(skeleton: Skeleton, observed: np.ndarray, weight: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(flags (F, J) bool, 1 - the joint's smallest weight (F, J)) of the ``rejected``
     reason: observed samples a robust estimator weighted below :data:`REJECT_WEIGHT`
@@ -274,7 +301,7 @@ class Inspection:
 
 
 #: every rule by its reason (the keys of :data:`REASONS`)
-RULES = {"spike": spike_flags, "turn": turn_flags, "linear": linear_flags, "bone": bone_flags}
+RULES = {"spike": spike_flags, "turn": turn_flags, "jump": jump_flags, "linear": linear_flags, "bone": bone_flags}
 
 
 def inspect_motion(

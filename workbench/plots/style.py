@@ -18,6 +18,7 @@ ENGINE_STYLES = ("-", "--", ":", "-.")
 REASON_COLOURS = {
     "spike": "#d62728",
     "turn": "#9467bd",
+    "jump": "#2ca02c",
     "linear": "#ff7f0e",
     "bone": "#8c564b",
     "missing": "#8f9aa8",

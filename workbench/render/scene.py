@@ -30,6 +30,12 @@ PLOTTER_OPTIONS = dict(border=True, border_color="#c5cbd3", border_width=1.0)
 JOINT_PX, BONE_PX, GHOST_PX, HALO_PX = 11, 3, 5, 23
 LOOK_AT = 0.56  # the camera looks at this height (times body height) above the floor
 HALO_BEHIND = 0.04  # a selected joint's halo sits this far (times body height) behind it
+#: metres from its path's median past which the body root is a stray frame (an exporter's
+#: glitch put one public take's body 1.5 km off), left out of the floor and the framing
+STRAY_M = 100.0
+#: metres from the body root past which a point is not the body's (an engine thrown by such
+#: frames), left out of the framing too
+REACH_M = 3.0
 GHOST_OPACITY = 0.35
 
 
@@ -178,8 +184,12 @@ class SkeletonScene:
         self.J = skeleton.n_joints
         self.unit_cm = skeleton.unit_cm
         lines = bone_lines(skeleton)
-        stacks = [a for p in panes for a in (p.points, p.ghost) if a is not None]
-        ys = np.concatenate([s[..., 1].ravel() for s in stacks]) if stacks else np.zeros(1)
+        metre = 100.0 / self.unit_cm
+        self.framed = ~(np.linalg.norm(self.root - np.nanmedian(self.root, axis=0), axis=1) > STRAY_M * metre)
+        root = self.root[self.framed, None]  # the floor and camera fit these frames, and in them the body's points
+        stacks = [a[self.framed] for p in panes for a in (p.points, p.ghost) if a is not None]
+        near = [s[..., 1][~(np.linalg.norm(s - root, axis=-1) > REACH_M * metre)] for s in stacks]
+        ys = np.concatenate(near or [np.zeros(1)])
         self.floor_y = float(np.nanmin(ys))
         self.height = max(float(np.nanmax(ys)) - self.floor_y, 1e-6)
         self.frame = 0
@@ -261,8 +271,9 @@ class SkeletonScene:
         import pyvista as pv
 
         cell = 100.0 / self.unit_cm  # one metre
-        lo = np.nanmin(self.root[:, [0, 2]], axis=0) - 1.2 * self.height
-        hi = np.nanmax(self.root[:, [0, 2]], axis=0) + 1.2 * self.height
+        xz = self.root[self.framed][:, [0, 2]]
+        lo = np.nanmin(xz, axis=0) - 1.2 * self.height
+        hi = np.nanmax(xz, axis=0) + 1.2 * self.height
         lo, hi = np.floor(lo / cell) * cell, np.ceil(hi / cell) * cell
         n = np.maximum(np.round((hi - lo) / cell).astype(int), 1)
         centre = ((lo[0] + hi[0]) / 2, self.floor_y, (lo[1] + hi[1]) / 2)
@@ -286,8 +297,8 @@ class SkeletonScene:
 
     def aim_camera(self) -> None:
         """A three-quarter side view of the walking direction, the whole body in view;
-        when not following, the whole trajectory."""
-        xz = self.root[:, [0, 2]]
+        when not following, the whole trajectory (but stray frames)."""
+        xz = self.root[self.framed][:, [0, 2]]
         travel = xz[-1] - xz[0]
         fwd = travel / np.linalg.norm(travel) if np.linalg.norm(travel) > 0.5 * self.height else np.array([0.0, 1.0])
         side = np.array([fwd[1], -fwd[0]])
