@@ -70,7 +70,7 @@ def test_a_body_that_leaves_its_path_is_a_jump(embedded_walk, studio_take):
     root[100:103, 0] += 100.0 / embedded_walk.skeleton.unit_cm
     intervals = inspect_motion(embedded_walk.replace(root_positions=root)).intervals()
     jumps = [i for i in intervals if i.reason == "jump"]
-    assert [(i.first, i.last, i.joints) for i in jumps] == [(99, 103, ("Hips",))]
+    assert [(i.first, i.last, i.joints) for i in jumps] == [(100, 102, ("Hips",))]  # the frames off the path
     assert jumps[0].score == pytest.approx(120.0, rel=0.01)  # m/s: 1 m (and a step) in a 120th of a second
     assert not inspect_motion(embedded_walk).flags["jump"].any() and not inspect_motion(studio_take).flags["jump"].any()
 
@@ -164,3 +164,31 @@ def test_inspect_reads_a_mask_of_the_file_s_frames_t_pose_included(embedded_root
     assert main(["inspect", str(take), "--json"]) == 0
     missing = [i for i in json.loads(capsys.readouterr().out)["intervals"] if i["reason"] == "missing"]
     assert [(i["first"], i["last"], i["joints"]) for i in missing] == [(50, 59, ["RightFoot"])]  # counted after it
+
+
+def test_clean_and_bench_can_fill_what_inspect_flags_instead_of_trusting_it(embedded_walk, tmp_path, capsys):
+    """A take with outliers and three frames 1 m off its path: with --fill-suspects the
+    engine fills the flagged samples, and kalman's output follows the truth."""
+    from workbench import metrics
+    from workbench.evaluate import run_benchmark
+
+    root = embedded_walk.root_positions.copy()
+    root[100:103, 0] += 100.0 / embedded_walk.skeleton.unit_cm
+    broken = parse_corruption("outliers:0.01").apply(embedded_walk.replace(root_positions=root), seed=3).motion
+    write_bvh(tmp_path / "broken.bvh", broken)
+    errors = {}
+    for flag in ([], ["--fill-suspects"]):
+        out = tmp_path / f"out{len(flag)}.bvh"
+        assert main(["clean", str(tmp_path / "broken.bvh"), "-o", str(out), "--engine", "kalman", *flag]) == 0
+        errors[bool(flag)] = (
+            metrics.mpjpe_cm(embedded_walk, read_bvh(out)),
+            metrics.root_cm(embedded_walk, read_bvh(out)),
+        )
+    assert "flagged as bad data (spike, turn, jump, linear) cleaned as gaps" in capsys.readouterr().err
+    assert errors[True][0] < 0.2 < 1.0 < errors[False][0] and errors[True][1] < 0.05 < 0.5 < errors[False][1]
+    plain, filled = (
+        run_benchmark(["kalman"], "outliers:0.01", [("walk", embedded_walk)], fill_suspects=fill)
+        for fill in (False, True)
+    )
+    assert filled.to_json()["fill_suspects"] and not plain.to_json()["fill_suspects"]
+    assert filled.summary["kalman"]["rms_angle_deg"] < 0.5 * plain.summary["kalman"]["rms_angle_deg"]

@@ -66,10 +66,19 @@ class TakeReport:
         )
 
 
-def clean_file(engine, source: Path, output: Path, mask: str | None = None, keep_reference: bool = False) -> TakeReport:
+def clean_file(
+    engine,
+    source: Path,
+    output: Path,
+    mask: str | None = None,
+    keep_reference: bool = False,
+    fill_suspects: bool = False,
+) -> TakeReport:
     """Clean the take ``source`` with ``engine`` and write it to ``output`` as BVH
     (atomically). Its mask is ``mask``, else the ``SOURCE.mask.json`` sidecar if there is
-    one; a T-pose reference frame 0 is written back as it is unless ``keep_reference``.
+    one; a T-pose reference frame 0 is written back as it is unless ``keep_reference``;
+    with ``fill_suspects`` the samples ``workbench inspect`` flags as bad data
+    (:func:`workbench.data.inspection.suspects_missing`) are cleaned as gaps.
     Raises what reading and cleaning raise (MotionFileError, EngineError, ...)."""
     from .core.motion import Observation
     from .data import has_reference_frame
@@ -91,6 +100,16 @@ def clean_file(engine, source: Path, output: Path, mask: str | None = None, keep
             "(--keep-reference cleans it with the motion)"
         )
     observation = Observation(motion, observed)
+    if fill_suspects:
+        from .data.inspection import FILL_REASONS, suspects_missing
+
+        before, observation = observation, suspects_missing(observation)
+        suspects = before.observed & ~observation.observed
+        notes.append(
+            f"{int(suspects.sum())} samples in {int(suspects.any(axis=1).sum())} frames flagged as bad data "
+            f"({', '.join(FILL_REASONS)}) cleaned as gaps"
+        )
+        del before
     del motion  # the observation holds the take: a long take's 50 MB are not kept twice
     t0 = time.perf_counter()
     cleaned = engine.clean(observation).motion
@@ -159,14 +178,17 @@ def one_thread():
                 torch.set_num_threads(threads)
 
 
-def clean_task(spec: str, mapping: str | None, source: str, output: str, keep_reference: bool) -> TakeReport:
+def clean_task(
+    spec: str, mapping: str | None, source: str, output: str, keep_reference: bool, fill_suspects: bool = False
+) -> TakeReport:
     """One take, on a worker, with one thread: its report, with the reason as ``error``
     when it failed (a bad file, a skeleton the engine refuses, or a bug)."""
     from .errors import describe
 
     try:
         with one_thread():
-            return clean_file(worker_engine(spec, mapping), Path(source), Path(output), None, keep_reference)
+            engine = worker_engine(spec, mapping)
+            return clean_file(engine, Path(source), Path(output), None, keep_reference, fill_suspects)
     except Exception as err:  # reported with the others at the end, never raised on the worker
         return TakeReport(Path(source), Path(output), error=describe(err))
 
@@ -209,11 +231,13 @@ def clean_library(
     scheduler: str | None = None,
     resume: bool = False,
     on_report: Callable[[TakeReport], None] | None = None,
+    fill_suspects: bool = False,
 ) -> list[TakeReport]:
     """Clean every (source, output) of ``jobs`` with the engine ``spec`` on Dask
     distributed: a local cluster of ``workers`` processes (default: the machine's
     cores), or the cluster at ``scheduler``. ``on_report`` sees each take's report as it
-    arrives (skipped ones first); returns them all, in ``jobs``' order. Interrupting it
+    arrives (skipped ones first); ``keep_reference`` and ``fill_suspects``: as
+    :func:`clean_file`'s. Returns the reports, in ``jobs``' order. Interrupting it
     (KeyboardInterrupt) cancels the takes not done and re-raises."""
     reports: dict[Path, TakeReport] = {}
 
@@ -233,7 +257,8 @@ def clean_library(
 
         with dask_client(workers, scheduler, len(todo)) as client:
             futures = [
-                client.submit(clean_task, spec, mapping, str(s), str(o), keep_reference, pure=False) for s, o in todo
+                client.submit(clean_task, spec, mapping, str(s), str(o), keep_reference, fill_suspects, pure=False)
+                for s, o in todo
             ]
             try:
                 for future in as_completed(futures):

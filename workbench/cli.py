@@ -286,7 +286,7 @@ def cmd_clean(args) -> int:
 
         if args.in_place:
             _back_up(source)
-        report = clean_file(engine, source, output, args.mask, args.keep_reference)
+        report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects)
         for note in report.notes:
             print(f"note: {note}", file=sys.stderr)
         print(report)
@@ -312,6 +312,8 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
     from .batch import check_manifest, clean_library
 
     settings = {"engine": spec, "keep_reference": args.keep_reference, "mapping": args.mapping}
+    if args.fill_suspects:  # only when set: a folder cleaned before the option existed still resumes
+        settings["fill_suspects"] = True
     try:
         check_manifest(Path(args.output), settings, args.resume)
     except ValueError as err:
@@ -337,7 +339,15 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
 
     try:
         reports = clean_library(
-            spec, jobs, args.keep_reference, args.mapping, args.workers, args.scheduler, args.resume, on_report
+            spec,
+            jobs,
+            args.keep_reference,
+            args.mapping,
+            args.workers,
+            args.scheduler,
+            args.resume,
+            on_report,
+            args.fill_suspects,
         )
     except KeyboardInterrupt:
         if bar is not None:
@@ -446,7 +456,8 @@ def cmd_bench(args) -> int:
     clips = [(c.id, c.load()) for c in chosen]
     seeds = list(range(args.seed0, args.seed0 + args.seeds))
     print(
-        f"benchmark: {len(specs)} engines x {len(clips)} clips x {len(seeds)} seeds, corruption {args.corrupt}",
+        f"benchmark: {len(specs)} engines x {len(clips)} clips x {len(seeds)} seeds, corruption {args.corrupt}"
+        + (", suspects filled" if args.fill_suspects else ""),
         file=sys.stderr,
     )
     progress = None
@@ -465,6 +476,7 @@ def cmd_bench(args) -> int:
         workers=args.workers,
         scheduler=args.scheduler,
         per_joint=bool(args.per_joint),
+        fill_suspects=args.fill_suspects,
     )
     datasets = result.datasets()
     if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
@@ -795,6 +807,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="clean a T-pose frame 0 with the motion (default: write it back untouched)",
     )
     sp.add_argument(
+        "--fill-suspects",
+        action="store_true",
+        help="clean the samples `workbench inspect` flags as bad data (spike, turn, jump, linear) as gaps: "
+        "the engine fills them instead of trusting them",
+    )
+    sp.add_argument(
         "--mapping",
         metavar="FILE",
         help="JSON pinning canonical joints for universal weights, as `workbench skeleton` takes it",
@@ -816,6 +834,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=JOINT_METRICS,
         metavar="METRIC",
         help=f"also a table of METRIC per joint, mean over the clips and seeds ({', '.join(JOINT_METRICS)})",
+    )
+    sp.add_argument(
+        "--fill-suspects",
+        action="store_true",
+        help="as clean --fill-suspects: the engines see what `workbench inspect` flags as bad data missing "
+        "(gap_mpjpe_cm then covers it too)",
     )
     sp.add_argument("--json", metavar="PATH")
     sp.add_argument("-v", "--verbose", action="store_true")

@@ -84,7 +84,9 @@ class BenchResult:
     than the take), with its message; its summary is over the clips it cleaned.
     ``dataset_of``: each clip's dataset, where the caller said; ``peaks``: per engine, the
     ``peak_mb`` of each dataset, measured on its longest case (the summary's is the
-    largest)."""
+    largest). ``fill_suspects``: the engines saw the samples ``workbench inspect`` flags
+    as bad data missing (:func:`workbench.data.inspection.suspects_missing`), and
+    ``gap_mpjpe_cm`` covers them too."""
 
     corruption: str
     seeds: list[int]
@@ -97,6 +99,7 @@ class BenchResult:
     refused: dict[str, dict[str, str]] = field(default_factory=dict)
     dataset_of: dict[str, str] = field(default_factory=dict)
     peaks: dict[str, dict[str, float]] = field(default_factory=dict)
+    fill_suspects: bool = False
     #: on Dask, each worker's peak resident memory (MB) by its address: a fact of the run,
     #: not a result, so not in the JSON
     worker_peaks_mb: dict[str, float] = field(default_factory=dict)
@@ -104,6 +107,7 @@ class BenchResult:
     def to_json(self) -> dict:
         return {
             "corruption": self.corruption,
+            "fill_suspects": self.fill_suspects,
             "seeds": self.seeds,
             "clips": self.clips,
             "rows": self.rows,
@@ -232,6 +236,7 @@ def run_benchmark(
     workers: int | None = None,
     scheduler: str | None = None,
     per_joint: bool = False,
+    fill_suspects: bool = False,
 ) -> BenchResult:
     """Corrupt each clip with each seed, clean it with each engine, score it. Engines are
     spec strings or ready engine objects (keyed by their ``spec``); ``datasets``: each
@@ -245,13 +250,16 @@ def run_benchmark(
     ``peak_mb`` is a worker's; the rows' scores are then the same bit for bit whatever
     the number of workers (the seconds are measured where each task ran). With
     ``per_joint`` each row also holds :func:`workbench.metrics.per_joint` under
-    ``"per_joint"`` (for :meth:`BenchResult.per_joint`)."""
+    ``"per_joint"`` (for :meth:`BenchResult.per_joint`). With ``fill_suspects`` the
+    engines see the samples ``workbench inspect`` flags as bad data missing
+    (:attr:`BenchResult.fill_suspects`)."""
     result = BenchResult(
         corruption=str(parse_corruption(corruption)),
         seeds=list(seeds),
         clips=[],
         glitches={clip_id: found for clip_id, motion in clips if (found := reference_glitches(motion))},
         dataset_of=dict(datasets or {}),
+        fill_suspects=fill_suspects,
     )
     cases: list[tuple[str, Case]] = []
     for clip_id, motion in clips:
@@ -265,6 +273,10 @@ def run_benchmark(
     if clips and not cases:
         first = next(iter(result.skipped.items()))
         raise CorruptionApplyError(f"{result.corruption} fits none of the {len(clips)} clips; {first[0]}: {first[1]}")
+    if fill_suspects:
+        from .data.inspection import suspects_missing
+
+        cases = [(i, dataclasses.replace(c, observation=suspects_missing(c.observation))) for i, c in cases]
     specs = [e if isinstance(e, str) else e.spec for e in engine_specs]
     if workers is not None or scheduler is not None:
         runner = _DaskRunner(specs, workers, scheduler, per_joint)

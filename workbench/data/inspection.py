@@ -12,8 +12,8 @@ Five rules that need no ground truth and no engine, each flagging samples (frame
 - ``turn``: a joint turning faster than a body can (:func:`.quality.reference_glitches`).
 - ``jump``: the body root moving faster than a body can between two frames, above
   :data:`JUMP_SPEED_M_S` (a dropped stretch of frames, a marker swap on the pelvis, an
-  exporter's stray frames that put the body a kilometre off); both frames of the step
-  are flagged, on the body root.
+  exporter's stray frames that put the body a kilometre off): the frames it is off its
+  path, on the body root (:func:`jump_flags`).
 - ``linear``: a moving joint whose channels lie exactly on a line, to the file's printed
   precision, for at least :data:`LINEAR_MIN_FRAMES` frames: a gap an exporter filled by
   linear interpolation (real motion always bends).
@@ -40,7 +40,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.kinematics import local_rotations
-from ..core.motion import Motion, Skeleton, channel_count, channel_joints, channel_mask, position_unknown
+from ..core.motion import (
+    Motion,
+    Observation,
+    Skeleton,
+    channel_count,
+    channel_joints,
+    channel_mask,
+    position_unknown,
+)
 from ..core.rotations import matrix_to_quaternion
 from .quality import reference_glitches, runs
 
@@ -183,8 +191,12 @@ def turn_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 
 
 def jump_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """(flags (F, J) bool, the step's speed (F, J) m/s) of the ``jump`` rule, on the body
-    root: both frames of each step it moves faster than :data:`JUMP_SPEED_M_S`."""
+    """(flags (F, J) bool, the fastest step's speed (F, J) m/s) of the ``jump`` rule, on
+    the body root. A step faster than :data:`JUMP_SPEED_M_S` that a later fast step
+    undoes (after it the root is back where a body could have walked to from where it
+    left, and less than half as far from there as it went) flags the frames between
+    them: the body was off its path there. One that nothing undoes (dropped frames, a
+    path that restarts elsewhere) flags both its frames."""
     F, J = motion.n_frames, motion.skeleton.n_joints
     flags, speeds = np.zeros((F, J), bool), np.zeros((F, J))
     if F < 2:
@@ -192,11 +204,19 @@ def jump_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     b = motion.skeleton.body_root
     path_m = motion.positions[:, b] * (motion.skeleton.unit_cm / 100.0)
     speed = np.linalg.norm(np.diff(path_m, axis=0), axis=1) * motion.fps
-    fast = speed > JUMP_SPEED_M_S  # NaN (a missing root) is not fast
-    flags[:-1, b] |= fast
-    flags[1:, b] |= fast
-    speeds[:-1, b] = np.where(fast, speed, 0.0)
-    speeds[1:, b] = np.maximum(speeds[1:, b], np.where(fast, speed, 0.0))
+    fast = list(np.flatnonzero(speed > JUMP_SPEED_M_S))  # NaN (a missing root) is not fast
+
+    def undoes(out: int, j: int) -> bool:
+        away = np.linalg.norm(path_m[out + 1 : j + 2] - path_m[out], axis=1)
+        return away[-1] * motion.fps <= JUMP_SPEED_M_S * (j + 1 - out) and away[-1] <= 0.5 * away[:-1].max()
+
+    while fast:
+        out = fast.pop(0)
+        back = next((k for k, j in enumerate(fast) if undoes(out, j)), None)
+        first, last = (out, out + 1) if back is None else (out + 1, fast[back])
+        flags[first : last + 1, b] = True
+        speeds[first : last + 1, b] = speed[out : out + 1 if back is None else last + 1].max()
+        del fast[: 0 if back is None else back + 1]
     return flags, speeds
 
 
@@ -302,6 +322,20 @@ class Inspection:
 
 #: every rule by its reason (the keys of :data:`REASONS`)
 RULES = {"spike": spike_flags, "turn": turn_flags, "jump": jump_flags, "linear": linear_flags, "bone": bone_flags}
+
+
+#: the rules whose flags mark bad data, not bad motion: an engine should fill those samples
+#: rather than trust them (``workbench clean --fill-suspects``); ``bone`` flags a stretch,
+#: which is motion
+FILL_REASONS = ("spike", "turn", "jump", "linear")
+
+
+def suspects_missing(observation: Observation) -> Observation:
+    """``observation`` with the samples the :data:`FILL_REASONS` rules flag on its
+    observed samples missing too, so that an engine fills them rather than trusts them."""
+    motion, observed = observation.motion, observation.observed
+    suspects = np.logical_or.reduce([RULES[reason](motion)[0] for reason in FILL_REASONS]) & observed
+    return Observation(motion, observed & ~suspects, observation.capture_step)
 
 
 def inspect_motion(
