@@ -87,6 +87,7 @@ def test_inspect_prints_the_intervals_and_writes_json(embedded_root, capsys):
     assert main(["inspect", take]) == 0
     out, err = capsys.readouterr()
     assert "421 frames at 120 fps" in out and "dropped frame 0" in err
+    assert "frames 77-77: spike" in out and "--fill-suspects` cleans what spike, turn, jump, linear flag" in err
     assert main(["inspect", take, "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["frames"] == 421 and report["reference_frames_dropped"] == 1

@@ -163,7 +163,7 @@ def cmd_inspect(args) -> int:
     from . import registry
     from .core.motion import Observation
     from .data import without_reference_frame
-    from .data.inspection import inspect_motion
+    from .data.inspection import FILL_REASONS, inspect_motion
     from .io.mask import take_mask
 
     recorded = _read(args.take)
@@ -193,6 +193,12 @@ def cmd_inspect(args) -> int:
     )
     for interval in intervals:
         print(f"  {interval}")
+    if any(i.reason in FILL_REASONS for i in intervals):
+        print(
+            f"note: `workbench clean {args.take} -o OUT.bvh --engine SPEC --fill-suspects` cleans what "
+            f"{', '.join(FILL_REASONS)} flag as gaps",
+            file=sys.stderr,
+        )
     return 0
 
 

@@ -478,3 +478,21 @@ def test_engines_run_shown_first_then_fastest_and_say_whether_queued_or_running(
     s.set_current("identity")
     s._run(["cae", "mssa", "kalman", "identity"])
     assert queued == ["identity", "kalman", "mssa", "cae"]
+
+
+def test_fill_suspects_makes_the_flagged_samples_gaps_the_engines_fill(window, qtbot):
+    """The take panel's box reopens the take with what the rules flag as bad data
+    missing: the outliers become gaps on the track, and unticking it brings them back."""
+    s, panel = window.session, window.controls.take
+    s.set_specs(["identity"], "identity")
+    s.open("cmu/walk/35_31", "outliers:0.02", 3)
+    settle(qtbot, window)
+    assert not s.take.fill_suspects and s.take.observation.observed.all() and not panel.fill.isChecked()
+    panel.fill.setChecked(True)
+    settle(qtbot, window)
+    filled = s.take
+    assert filled.fill_suspects and filled.corruption == "outliers:0.02" and filled.seed == 3
+    assert (~filled.observation.observed).sum() > 50 and "missing" in {i.reason for i in s.suspects()}
+    panel.fill.setChecked(False)
+    settle(qtbot, window)
+    assert not s.take.fill_suspects and s.take.observation.observed.all()

@@ -46,7 +46,8 @@ CLIP_CHARS = 16
 
 
 class TakePanel(QGroupBox):
-    """Clip picker (catalogue or file), corruption spec and seed."""
+    """Clip picker (catalogue or file), corruption spec, seed, and whether the samples the
+    suspicious-frames rules flag as bad data are cleaned as gaps."""
 
     def __init__(self, session, parent=None) -> None:
         super().__init__("Take", parent)
@@ -75,6 +76,12 @@ class TakePanel(QGroupBox):
         self.seed.editingFinished.connect(self.apply)
         apply = QPushButton("Apply")
         apply.clicked.connect(self.apply)
+        self.fill = QCheckBox("fill suspects")
+        self.fill.setToolTip(
+            "clean the samples the suspicious-frames track flags as bad data (spike, turn, jump, linear) as gaps: "
+            "the engines fill them instead of trusting them"
+        )
+        self.fill.toggled.connect(lambda _: self.apply())
         form = QFormLayout(self)
         form.addRow("clip", self.clip)
         form.addRow("", browse)
@@ -83,6 +90,7 @@ class TakePanel(QGroupBox):
         row.addWidget(self.seed, 1)
         row.addWidget(apply)
         form.addRow("seed", row)
+        form.addRow("", self.fill)
         session.takeChanged.connect(self.show_take)
 
     def _catalogue(self) -> list[str]:
@@ -100,6 +108,9 @@ class TakePanel(QGroupBox):
         self.clip.lineEdit().setCursorPosition(0)  # the dataset and category, where a long id is cut
         self.corruption.setText(take.corruption)
         self.seed.setValue(take.seed)
+        self.fill.blockSignals(True)  # showing the take is not asking for another
+        self.fill.setChecked(take.fill_suspects)
+        self.fill.blockSignals(False)
 
     def browse(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open a take", "", "Motion files (*.bvh *.amc);;All files (*)")
@@ -111,9 +122,9 @@ class TakePanel(QGroupBox):
         if not self.isVisible():  # focus-out signals while the window is torn down
             return
         take = self.session.take
-        source, corruption, seed = self.clip.currentText().strip(), self.corruption.text(), self.seed.value()
-        if take is None or (source, corruption, seed) != (take.source, take.corruption, take.seed):
-            self.session.open(source, corruption, seed)
+        chosen = self.clip.currentText().strip(), self.corruption.text(), self.seed.value(), self.fill.isChecked()
+        if take is None or chosen != (take.source, take.corruption, take.seed, take.fill_suspects):
+            self.session.open(*chosen)
 
 
 class Collapsible(QWidget):

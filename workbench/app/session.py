@@ -152,13 +152,17 @@ class Session(QObject):
         self._pool.waitForDone()
 
     # -- the take -------------------------------------------------------------------
-    def open(self, source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) -> None:
-        """Load a clip id or file and corrupt it, on the worker (the latest request wins)."""
+    def open(
+        self, source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, fill_suspects: bool = False
+    ) -> None:
+        """Load a clip id or file and corrupt it (with ``fill_suspects``, what the
+        inspection rules flag as bad data made gaps), on the worker (the latest request
+        wins)."""
         self._opening += 1
         request = self._opening
         self._submit(
             f"loading {source}",
-            lambda: open_take(source, corruption, seed),
+            lambda: open_take(source, corruption, seed, fill_suspects),
             self.set_take,
             lambda text: self.message.emit(f"cannot open {source}: {text}"),
             lambda: request == self._opening,

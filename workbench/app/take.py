@@ -85,7 +85,9 @@ class Track:
 @dataclass(frozen=True)
 class Take:
     """What the user compares engines on. ``truth`` is None for a take shown as recorded
-    (corruption ``none``); ``noisy`` is the observation drawn with its gaps bridged."""
+    (corruption ``none``); ``noisy`` is the observation drawn with its gaps bridged;
+    ``fill_suspects``: the samples the inspection rules flag as bad data are gaps of the
+    observation (:func:`workbench.data.inspection.suspects_missing`)."""
 
     source: str
     corruption: str
@@ -94,6 +96,7 @@ class Take:
     truth: Motion | None
     noisy: Track
     truth_track: Track | None
+    fill_suspects: bool = False
 
     @property
     def motion(self) -> Motion:
@@ -141,9 +144,11 @@ def make_take(
     seed: int = 0,
     source: str = "",
     observed: np.ndarray | None = None,
+    fill_suspects: bool = False,
 ) -> Take:
     """Corrupt a clean ``motion`` with ``corruption`` and ``seed``; with corruption
-    ``none`` it is the observation itself (``observed`` mask (F, J) if known), no truth."""
+    ``none`` it is the observation itself (``observed`` mask (F, J) if known), no truth.
+    With ``fill_suspects`` the samples the inspection rules flag as bad data are gaps."""
     from ..corruption import make_case, parse_corruption
 
     spec = parse_corruption(corruption)
@@ -152,6 +157,10 @@ def make_take(
         truth, observation = motion, case.observation
     else:
         truth, observation = None, Observation(motion, observed)
+    if fill_suspects:
+        from ..data.inspection import suspects_missing
+
+        observation = suspects_missing(observation)
     truth_track = None if truth is None else Track.of(truth, None)
     noisy = Track.of(observation.bridged(), truth)
     return Take(
@@ -162,17 +171,18 @@ def make_take(
         truth,
         noisy,
         truth_track,
+        fill_suspects,
     )
 
 
-def open_take(source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0) -> Take:
-    """Load ``source`` (clip id or file) and make its take; a file shown as recorded
-    keeps the gaps its mask sidecar lists."""
+def open_take(source: str, corruption: str = DEFAULT_CORRUPTION, seed: int = 0, fill_suspects: bool = False) -> Take:
+    """Load ``source`` (clip id or file) and make its take (:func:`make_take`); a file
+    shown as recorded keeps the gaps its mask sidecar lists."""
     from ..corruption import parse_corruption
 
     motion = load_motion(source)
     observed = None if parse_corruption(corruption) else sidecar_mask(source, motion)
-    return make_take(motion, corruption, seed, source, observed)
+    return make_take(motion, corruption, seed, source, observed, fill_suspects)
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.kinematics import local_rotations
+from ..core.kinematics import joint_positions, local_rotations
 from ..core.motion import (
     Motion,
     Observation,
@@ -201,8 +201,12 @@ def jump_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     flags, speeds = np.zeros((F, J), bool), np.zeros((F, J))
     if F < 2:
         return flags, speeds
-    b = motion.skeleton.body_root
-    path_m = motion.positions[:, b] * (motion.skeleton.unit_cm / 100.0)
+    sk, b = motion.skeleton, motion.skeleton.body_root
+    if b == 0:  # the root's own channels: no kinematics (a 10-minute take's would be 0.5 GB)
+        path = motion.root_positions + sk.offsets[0]
+    else:
+        path = joint_positions(sk, motion.root_positions, motion.angles_deg, motion.translations)[:, b]
+    path_m = path * (sk.unit_cm / 100.0)
     speed = np.linalg.norm(np.diff(path_m, axis=0), axis=1) * motion.fps
     fast = list(np.flatnonzero(speed > JUMP_SPEED_M_S))  # NaN (a missing root) is not fast
 
