@@ -2,6 +2,7 @@
 workers, weights loaded once per worker, failures reported, --resume, an existing
 cluster, interrupts."""
 
+import json
 import os
 import time
 
@@ -144,3 +145,12 @@ def test_the_long_benchmark_times_a_clean_command_per_engine(embedded_root):
     assert kalman["command_s"] > kalman["clean_s"] and "no-such-engine" in bad["error"]
     table = result.markdown()
     assert "| kalman |" in table and "failed:" in table and "frames/s" in table
+
+
+def test_a_folder_cleaned_with_its_suspects_filled_says_so_and_resumes_only_so(library, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--fill-suspects", "--workers", "1"]) == 0
+    assert capsys.readouterr().err.count("flagged as bad data") == 3  # a note per take
+    assert json.loads((out / batch.MANIFEST).read_text())["fill_suspects"] is True
+    assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--resume"]) == 2
+    assert "--resume would mix the two" in capsys.readouterr().err

@@ -226,12 +226,12 @@ def clean_library(
     spec: str,
     jobs: list[tuple[Path, Path]],
     keep_reference: bool = False,
+    fill_suspects: bool = False,
     mapping: str | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
     resume: bool = False,
     on_report: Callable[[TakeReport], None] | None = None,
-    fill_suspects: bool = False,
 ) -> list[TakeReport]:
     """Clean every (source, output) of ``jobs`` with the engine ``spec`` on Dask
     distributed: a local cluster of ``workers`` processes (default: the machine's

@@ -348,12 +348,12 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
             spec,
             jobs,
             args.keep_reference,
+            args.fill_suspects,
             args.mapping,
             args.workers,
             args.scheduler,
             args.resume,
             on_report,
-            args.fill_suspects,
         )
     except KeyboardInterrupt:
         if bar is not None:
