@@ -673,7 +673,12 @@ def cmd_report(args) -> int:
 
     specs = split_engine_specs(args.engine) if args.engine else default_engines()
     take, runs = clean_take(
-        args.clip, args.corrupt, args.seed, specs, on_refused=None if args.engine else refused
+        args.clip,
+        args.corrupt,
+        args.seed,
+        specs,
+        on_refused=None if args.engine else refused,
+        fill_suspects=args.fill_suspects,
     )  # the defaults: those that take it
     if args.output is not None:
         print(f"wrote {write_report(args.output, take, runs, args.frame)}")
@@ -929,6 +934,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--video",
         metavar="FILE.mp4",
         help="also (or instead) the side-by-side playback with the error plot's cursor, in real time",
+    )
+    sp.add_argument(
+        "--fill-suspects", action="store_true", help="as clean --fill-suspects (the app's fill suspects box)"
     )
     sp.set_defaults(func=cmd_report)
 

@@ -179,3 +179,15 @@ def test_a_cancelled_video_leaves_no_file(tmp_path, take):
     assert write_video(tmp_path / "v.mp4", take, [], progress=lambda done, total: done < 5) is None
     assert list(tmp_path.iterdir()) == []
     np.testing.assert_array_equal(video_frames(take)[:4], [0, 4, 8, 12])  # 120 fps shown at 30
+
+
+def test_a_report_can_fill_the_suspects_first(tmp_path, monkeypatch):
+    from workbench.app import report
+    from workbench.app.take import open_take
+
+    asked = []
+    monkeypatch.setattr(report, "open_take", lambda *args: asked.append(args) or open_take(*args))
+    out = tmp_path / "filled.png"
+    argv = ["report", DEFAULT_CLIP, "--corrupt", "outliers:0.02", "--engine", "identity", "--fill-suspects"]
+    assert cli.main([*argv, "-o", str(out)]) == 0
+    assert out.read_bytes()[:8] == PNG and asked == [(DEFAULT_CLIP, "outliers:0.02", 0, True)]

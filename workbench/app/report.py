@@ -105,13 +105,15 @@ def clean_take(
     seed: int,
     specs: list[str],
     on_refused: Callable[[str, str], None] | None = None,
+    fill_suspects: bool = False,
 ) -> tuple[Take, list[EngineRun]]:
-    """Load and corrupt ``source`` and run the engines on it. Raises what the engines
-    raise; with ``on_refused``, an engine that refuses the take (EngineError: a trained
-    engine on another skeleton) is left out and ``on_refused(spec, message)`` told instead."""
+    """Load and corrupt ``source`` (:func:`open_take`, ``fill_suspects`` as there) and run
+    the engines on it. Raises what the engines raise; with ``on_refused``, an engine that
+    refuses the take (EngineError: a trained engine on another skeleton) is left out and
+    ``on_refused(spec, message)`` told instead."""
     from ..engine import EngineError
 
-    take = open_take(source, corruption, seed)
+    take = open_take(source, corruption, seed, fill_suspects)
     runs = []
     for spec in specs:
         try:
