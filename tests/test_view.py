@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench import registry
+from workbench import metrics, registry
 from workbench.core.motion import Observation
 from workbench.core.rotations import wrap_deg
 from workbench.corruption import parse_corruption
@@ -39,12 +39,34 @@ def test_a_moving_reference_node_is_kept_and_the_body_placed_under_it(studio_tak
     np.testing.assert_allclose(back.root_positions, take.root_positions)
 
 
-def test_a_stretchy_joint_below_the_body_root_is_refused_with_the_engines_that_clean_it(stretchy_take):
-    with pytest.raises(EngineError, match="LowerArm_L moves by position channels below the body root") as err:
-        body_skeleton(stretchy_take.skeleton)
-    assert "kalman" in str(err.value)
-    with pytest.raises(EngineError, match="LowerArm_L"):
-        registry.create("mssa").clean(Observation(stretchy_take))
+@pytest.mark.parametrize("spec", ["ebf", "cae", "mssa", "ebd>ebf"])
+def test_a_stretchy_bone_is_modelled_rigid_and_keeps_its_translation(spec, stretchy_take):
+    """A forearm that stretches by 10 % (Perception Neuron's displacement export does
+    this on every joint): the engines clean the angles on a rigid bone of its median
+    length, and the stretch comes back as observed, gaps bridged."""
+    body = body_skeleton(stretchy_take.skeleton)
+    k = stretchy_take.skeleton.index("LowerArm_L")
+    assert (
+        not body.translated and body.signature() == body_skeleton(without_stretch(stretchy_take).skeleton).signature()
+    )
+    obs = parse_corruption("angular:0.5+gaps:0.01").apply(stretchy_take, 0)
+    cleaned = registry.create(spec).clean(obs).motion
+    t = stretchy_take.skeleton.translated.index(k)
+    assert cleaned.skeleton is obs.skeleton
+    np.testing.assert_array_equal(cleaned.translations[:, t], obs.bridged().translations[:, t])
+    assert np.isfinite(cleaned.channels).all()
+    rigid = registry.create(spec).clean(
+        parse_corruption("angular:0.5+gaps:0.01").apply(without_stretch(stretchy_take), 0)
+    )
+    assert metrics.rms_angle_deg(stretchy_take, cleaned) < 1.1 * metrics.rms_angle_deg(
+        without_stretch(stretchy_take), rigid.motion
+    )
+
+
+def without_stretch(take):
+    """The studio take the stretchy one was made from: its forearm rigid again."""
+    sk = take.skeleton
+    return take.replace(skeleton=sk.replace(translated=sk.translated[:-1]), translations=take.translations[:, :-1])
 
 
 def test_a_30_fps_take_is_seen_at_120_and_comes_back_with_its_observed_samples(studio_take):

@@ -16,9 +16,10 @@ with ``bf16=false``, to float precision.
 Rows are channel-matrix frames (D,) = (3 + 3J + 3T,): root position, every joint's Euler
 angles in degrees, the translated joints' translations. Frames must be complete (no NaN):
 a stream cannot bridge gaps. A take whose body hangs under a reference node (a
-MotionBuilder export: ``joint_Root`` carries the translated ``Hips``) streams as offline
-cleaning sees it, each frame in its body view (:mod:`workbench.engine.view`) and back,
-the joints above the body root as they came.
+MotionBuilder export: ``joint_Root`` carries the translated ``Hips``) or whose bones
+stretch streams as offline cleaning sees it, each frame in its body view
+(:mod:`workbench.engine.view`) and back, the joints above the body root and the bones'
+translations as they came.
 """
 
 from __future__ import annotations
@@ -89,8 +90,8 @@ class FilterStream:
         self.fps = float(fps)
         self.width = channel_count(skeleton)
         self.unit_cm = body.unit_cm
-        # a take carried by a reference node: each frame to its body view and back
-        self._views = (_one_frame(skeleton, fps), _one_frame(body, fps)) if skeleton.body_root else None
+        # a take carried by a reference node, or with stretchy bones: each frame to its body view and back
+        self._views = (_one_frame(skeleton, fps), _one_frame(body, fps)) if body is not skeleton else None
         self._reset()
 
     def _reset(self) -> None:

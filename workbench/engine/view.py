@@ -13,6 +13,10 @@ puts the result back (:class:`ModelView`):
   The result is back in the take's skeleton with the reference joints above the body
   root as observed (gaps bridged) and the body root's local transform under them
   (:func:`from_body`). A skeleton whose root is the body root is its own body view.
+- **Rigid bones** (:func:`stretchy_joints`): a joint below the body root whose position
+  channels vary (Perception Neuron's displacement export, a stretchy rig) is modelled
+  as a rigid bone of its median length over the take, and its translation comes back
+  as observed (gaps bridged): the engines clean the angles, not the stretch.
 - **Upright** (:mod:`workbench.core.upright`): a take whose head stands above its feet
   along another axis than +Y (a Z-up export) is turned onto +Y by relabelling axes,
   exactly, and turned back after: the models' headings and floors are about Y.
@@ -40,7 +44,7 @@ from ..core.motion import Motion, Observation, angle_slice, channel_count
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
 from ..core.upright import turn_motion, turn_skeleton, turn_vectors, up_turn
-from .base import CLASSICAL, CleanResult, EngineError
+from .base import CleanResult, EngineError
 from .signal import rewrap_angles
 
 __all__ = [
@@ -68,29 +72,29 @@ def body_joints(skeleton: Skeleton) -> np.ndarray:
     return np.arange(skeleton.body_root, skeleton.n_joints)
 
 
+def stretchy_joints(skeleton: Skeleton) -> tuple[int, ...]:
+    """The translated joints below the body root: bones whose length the take animates."""
+    return tuple(j for j in skeleton.translated if j > skeleton.body_root)
+
+
 def body_skeleton(skeleton: Skeleton) -> Skeleton:
     """The skeleton a trained engine models: the body root as root, with position and
-    rotation channels; the skeleton itself when its root is its body root.
-
-    Raises
-    ------
-    EngineError
-        A joint below the body root moves by position channels (a stretchy rig), which
-        no trained engine models.
-    """
-    b = skeleton.body_root
-    loose = [skeleton.names[j] for j in skeleton.translated if j > b]
-    if loose:
-        raise EngineError(
-            f"{', '.join(loose)} move{'s' if len(loose) == 1 else ''} by position channels below the body root "
-            f"{skeleton.names[b]!r}, which no trained engine models; clean the take with a classical engine: "
-            f"{CLASSICAL}"
-        )
+    rotation channels, and every bone rigid (:func:`stretchy_joints` untranslated, at
+    their OFFSET lines until :func:`to_body` gives them a take's median); the skeleton
+    itself when its root is its body root and no bone stretches."""
+    b, stretchy = skeleton.body_root, stretchy_joints(skeleton)
     if b == 0:
-        return skeleton
+        if not stretchy:
+            return skeleton
+        offsets = skeleton.offsets.copy()
+        offsets[list(stretchy)] = skeleton.file_offsets[list(stretchy)]
+        return skeleton.replace(offsets=offsets, translated=())
     keep = body_joints(skeleton)
     rotations = tuple(c for c in skeleton.channels[b] if c not in POSITION_CHANNELS) or ZYX_ROTATION
-    offsets = skeleton.offsets[keep].copy()
+    offsets = np.where(
+        np.isin(np.arange(skeleton.n_joints), stretchy)[:, None], skeleton.file_offsets, skeleton.offsets
+    )
+    offsets = offsets[keep]
     offsets[0] = 0.0
     return Skeleton(
         names=tuple(skeleton.names[j] for j in keep),
@@ -105,13 +109,21 @@ def body_skeleton(skeleton: Skeleton) -> Skeleton:
 def to_body(motion: Motion, body: Skeleton | None = None) -> Motion:
     """``motion`` in its :func:`body_skeleton` (given as ``body`` if the caller has it):
     the body root's world position and rotation as root channels, the other joints'
-    angles as they are. NaN where the chain above is NaN. The motion itself when it is
-    its own body view."""
+    angles as they are, each stretchy bone rigid at its median translation over the
+    take. NaN where the chain above is NaN. The motion itself when it is its own body
+    view."""
     skeleton = motion.skeleton
-    b = skeleton.body_root
-    if b == 0:
-        return motion
+    b, stretchy = skeleton.body_root, stretchy_joints(skeleton)
     body = body_skeleton(skeleton) if body is None else body
+    if body is skeleton:
+        return motion
+    if stretchy:
+        offsets = body.offsets.copy()
+        moving = [skeleton.translated.index(j) for j in stretchy]
+        offsets[np.array(stretchy) - b] = np.nan_to_num(np.nanmedian(motion.translations[:, moving], axis=0))
+        body = body.replace(offsets=offsets)
+    if b == 0:
+        return Motion(body, motion.fps, motion.root_positions, motion.angles_deg, motion.name)
     P, R = motion.positions[:, b], motion.global_rotations[:, b]  # the body root in the world
     angles = motion.angles_deg[:, body_joints(skeleton)].copy()
     finite = np.isfinite(R).all(axis=(1, 2))
@@ -122,14 +134,17 @@ def to_body(motion: Motion, body: Skeleton | None = None) -> Motion:
 
 
 def from_body(motion: Motion, carrier: Motion) -> Motion:
-    """A body-view motion back in the take's skeleton: the joints above the body root as
-    in ``carrier`` (the take's motion, finite: an observation bridged), the body root's
-    local rotation and translation placing it where ``motion`` has it, the other
-    joints' angles from ``motion``. ``motion`` itself when the take is its own body view."""
+    """A body-view motion back in the take's skeleton: the joints above the body root and
+    the stretchy bones' translations as in ``carrier`` (the take's motion, finite: an
+    observation bridged), the body root's local rotation and translation placing it
+    where ``motion`` has it, the other joints' angles from ``motion``. ``motion`` itself
+    when the take is its own body view."""
     skeleton = carrier.skeleton
     b = skeleton.body_root
-    if b == 0:
+    if motion.skeleton is skeleton:
         return motion
+    if b == 0:
+        return carrier.replace(root_positions=motion.root_positions, angles_deg=motion.angles_deg)
     parent = skeleton.parents[b]
     P_parent, R_parent = carrier.positions[:, parent], carrier.global_rotations[:, parent]
     R_body = euler_to_matrix(motion.angles_deg[:, 0], motion.skeleton.rotation_order(0))
@@ -220,7 +235,7 @@ class ModelView:
         skeleton = source.skeleton
         body = body_skeleton(skeleton)
         interpolated = abs(source.motion.fps - fps) > SAME_FPS and source.n_frames >= 2
-        bridged = source.bridged() if interpolated or skeleton.body_root else None
+        bridged = source.bridged() if interpolated or body is not skeleton else None
         observed = source.observed[:, body_joints(skeleton)].copy()
         observed[:, 0] = source.observed[:, list(skeleton.root_chain)].all(axis=1)
         step = max(source.capture_step * fps / source.motion.fps, 1.0) if interpolated else source.capture_step
@@ -276,7 +291,7 @@ class ModelView:
             motion = motion.with_channels(_resample_frames(_unwrapped(result.motion), t))
         if self.turn is not None:
             motion = turn_motion(motion, self.turn.T, body_skeleton(source.skeleton))
-        if source.skeleton.body_root:
+        if self.bridged is not None:  # the take is not its own body view
             motion = from_body(motion, self.bridged)
         X = rewrap_angles(motion.channels, source, copy=False)
         if keep_observed:
@@ -311,10 +326,23 @@ class ModelView:
         return value
 
     def _spread(self, value: np.ndarray) -> np.ndarray:
-        """A diagnostic over the view's channels or joints, over the take's."""
+        """A diagnostic over the view's channels or joints, over the take's (zero for the
+        joints above the body root and the stretchy bones' translations)."""
         skeleton, body = self.source.skeleton, self.observation.skeleton
-        if skeleton.body_root == 0:  # the view has the take's joints and channels, in place
+        b, F = skeleton.body_root, value.shape[0]
+        if b == 0 and channel_count(body) == channel_count(skeleton):  # the take's joints and channels, in place
             return value
+        if value.ndim >= 2 and value.shape[1] == body.n_joints:
+            out = np.zeros((F, skeleton.n_joints) + value.shape[2:])
+            out[:, body_joints(skeleton)] = value
+            return out
+        if value.ndim == 2 and value.shape[1] == channel_count(body):
+            out = np.zeros((F, channel_count(skeleton)))
+            t0 = 0 if b == 0 else angle_slice(skeleton).stop + 3 * skeleton.translated.index(b)
+            out[:, t0 : t0 + 3] = value[:, :3]
+            out[:, 3 + 3 * b : 3 + 3 * skeleton.n_joints] = value[:, 3 : 3 + 3 * body.n_joints]
+            return out
+        return value
         F = value.shape[0]
         if value.ndim >= 2 and value.shape[1] == body.n_joints:
             out = np.zeros((F, skeleton.n_joints) + value.shape[2:])
