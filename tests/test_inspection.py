@@ -151,6 +151,8 @@ def test_inspect_measures_its_flags_on_corrupted_clips(embedded_root, capsys):
     assert {("spikes", "spike"), ("spikes", "rejected"), ("linear fills", "linear"), ("glitches", "any")} <= set(rows)
     recall, precision = (float(v) for v in rows[("spikes", "spike")].split("|")[3:5])
     assert recall >= 0.9 and precision >= 0.8
+    recall, precision = (float(v) for v in rows[("jumps", "jump")].split("|")[3:5])
+    assert recall >= 0.9 and precision >= 0.9
 
 
 def test_inspect_reads_a_mask_of_the_file_s_frames_t_pose_included(embedded_root, tmp_path, capsys):

@@ -440,11 +440,13 @@ def peak_task(spec: str, observation: Observation) -> float:
 #: by ``lerp`` and printed at 6 significant digits, as an exporter fills and prints them, and
 #: read back without a mask; the truth is every filled sample (a one-frame fill is a
 #: point on any curve, and a hold at a take's ends does not move: those are the misses).
+#: ``jumps``: the truth is every frame the body root was moved, on the body root.
 #: ``glitches``: the clean take itself, whose truth is its capture glitches
 #: (:func:`workbench.data.quality.reference_glitches`), scored on every rule's flags.
 INSPECTION_CASES = (
     ("spikes", "outliers:0.01", ("spike", "turn", "rejected", "disagree")),
     ("linear fills", "gaps:0.01", ("linear",)),
+    ("jumps", "jumps:0.005", ("jump",)),
     ("glitches", "none", ("spike", "turn", "jump", "linear", "bone")),
 )
 SPIKE_TRUTH_DEG = 10.0  # every outlier turns its joint by at least 30 degrees
@@ -531,6 +533,11 @@ def measure_inspection(
                     observation = parse_corruption(corruption).apply(motion, seed=seed)
                     taken = _printed(registry.create("lerp").clean(observation).motion, FILL_DIGITS)
                     truth = ~observation.observed
+                elif case == "jumps":
+                    taken = parse_corruption(corruption).apply(motion, seed=seed).motion
+                    b = motion.skeleton.body_root
+                    truth = np.zeros((motion.n_frames, motion.skeleton.n_joints), bool)
+                    truth[:, b] = (taken.positions[:, b] != motion.positions[:, b]).any(axis=1)
                 else:  # the glitches, as the turn rule flags them
                     taken, truth = motion, turn_flags(motion)[0]
                 found = inspect_motion(taken, robust_weights=weights, cleaned_points_cm=points)

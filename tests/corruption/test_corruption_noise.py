@@ -184,3 +184,24 @@ def test_other_skeleton(daz):
     obs = parse_corruption("angular:0.5+outliers:0.01+sine:0.2").apply(daz, seed=0)
     assert obs.observed.all() and np.isfinite(obs.motion.channels).all()
     assert np.array_equal(obs.motion.root_positions, daz.root_positions)
+
+
+@pytest.mark.parametrize("take", ["walk", "studio_take"])
+def test_jumps_move_the_body_off_its_path_and_back(take, request):
+    """Only the body root's position channels move (a studio take's Hips translation
+    under its reference node), by 0.5-2 m for 1 to 5 frames, the rest of the body with it."""
+    motion = request.getfixturevalue(take)
+    obs = parse_corruption("jumps:0.02").apply(motion, seed=4)
+    assert obs.observed.all() and np.array_equal(obs.motion.angles_deg, motion.angles_deg)
+    b = motion.skeleton.body_root
+    moved_m = (
+        np.linalg.norm(obs.motion.positions[:, b] - motion.positions[:, b], axis=1) * motion.skeleton.unit_cm / 100
+    )
+    away = moved_m > 0
+    runs = np.diff(np.flatnonzero(np.diff(np.r_[0, away.astype(int), 0])))[::2]  # lengths of the runs off the path
+    assert away.sum() >= 5 and runs.max() <= 2 * 5  # two jumps that meet add up
+    assert moved_m[away].min() > 0.05 and moved_m[away].max() < 2 * 2.0 + 1e-9
+    offset = (obs.motion.positions - motion.positions)[away, b:]  # the whole body moves with its root
+    np.testing.assert_allclose(offset, np.broadcast_to(offset[:, :1], offset.shape), atol=1e-6)
+    assert (obs.motion.positions[:, :b] == motion.positions[:, :b]).all()  # a reference node above it stays
+    assert np.array_equal(parse_corruption("jumps:0.02").apply(motion, seed=4).motion.channels, obs.motion.channels)

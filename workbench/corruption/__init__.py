@@ -8,13 +8,13 @@ each), spatial noise levels in cm, gap lengths in frames.
 >>> case = make_case(motion, "angular:0.5", seed=0)
 
 Models (``MODELS``; ``models_help()`` prints them): angular, uniform, bias, sine,
-spatial, spatial-ends, outliers (noise) and gaps, block, joints, drop (missing data).
+spatial, spatial-ends, outliers, jumps (noise) and gaps, block, joints, drop (missing data).
 """
 
 from .base import Model, Param, Seconds, format_number, random_stream
 from .errors import CorruptionApplyError, CorruptionSpecError
 from .gaps import Block, Drop, Gaps, Joints
-from .noise import Angular, Bias, Outliers, Sine, Uniform
+from .noise import Angular, Bias, Jumps, Outliers, Sine, Uniform
 from .spatial import END_JOINT_PATTERN, Spatial, SpatialEnds, end_joints
 from .spec import MODELS, Corruption, make_case, models_help, parse_corruption
 
@@ -36,6 +36,7 @@ __all__ = [
     "Bias",
     "Sine",
     "Outliers",
+    "Jumps",
     "Spatial",
     "SpatialEnds",
     "Gaps",

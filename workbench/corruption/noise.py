@@ -3,7 +3,8 @@
 Units: angles in degrees; every level ``K`` is relative to the std of the channel in the
 clean clip being corrupted (computed on unwrapped angles). Only the joint-angle channels
 (the 3 rotation channels of every joint but the root) are touched: the root trajectory,
-position and orientation, stays clean, as the papers assume. Channels whose clean std is
+position and orientation, stays clean, as the papers assume; ``jumps`` alone moves the
+body's path, as a marker swap on the pelvis or an exporter's stray frames do. Channels whose clean std is
 0 (always-constant channels such as CMU's LHipJoint) get no noise from the std-relative
 models and no outliers. Noise is added to the raw angles (no re-wrapping), so
 ``noisy - clean`` is exactly the drawn noise.
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.motion import angle_slice
 from .base import Model, Param, Work
 
 _K = Param("K", "scale", "noise level, in multiples of each channel's std")
@@ -107,3 +109,31 @@ class Outliers(Model):
         sign = np.where(rng.random(shape) < 0.5, -1.0, 1.0)
         size = rng.uniform(self.LOW, self.HIGH, shape) * np.maximum(std, self.FLOOR_DEG)
         _add(work, np.where(hit, sign * size, 0.0))
+
+
+@dataclass(frozen=True)
+class Jumps(Model):
+    """At each frame, with probability P, the body leaves its path: its root (the body
+    root, under a reference node) is moved by U(0.5, 2) m in a random direction for 1 to
+    5 frames, the whole body with it, and is then back, as after a marker swap on the
+    pelvis or an exporter's stray frames. Jumps that meet add up."""
+
+    name = "jumps"
+    description = "with probability P per frame the body jumps U(0.5, 2) m off its path for 1-5 frames"
+    params = (Param("P", "prob", "probability that a jump starts at a frame"),)
+    p: float
+
+    LOW_M = 0.5
+    HIGH_M = 2.0
+    MAX_FRAMES = 5
+
+    def corrupt(self, work: Work, rng: np.random.Generator) -> None:
+        sk = work.skeleton
+        b = sk.body_root
+        col = 0 if b == 0 else angle_slice(sk).stop + 3 * sk.translated.index(b)  # its position channels
+        for start in np.flatnonzero(rng.random(work.n_frames) < self.p):
+            direction = rng.standard_normal(3)
+            metres = rng.uniform(self.LOW_M, self.HIGH_M)
+            frames = int(rng.integers(1, self.MAX_FRAMES + 1))
+            move = direction / np.linalg.norm(direction) * metres * 100.0 / sk.unit_cm
+            work.channels[start : start + frames, col : col + 3] += move

@@ -17,13 +17,14 @@ from ..core.motion import Case, Motion, Observation
 from .base import Model, Work, random_stream
 from .errors import CorruptionApplyError, CorruptionSpecError
 from .gaps import Block, Drop, Gaps, Joints
-from .noise import Angular, Bias, Outliers, Sine, Uniform
+from .noise import Angular, Bias, Jumps, Outliers, Sine, Uniform
 from .spatial import Spatial, SpatialEnds
 
 #: name -> model class, in help-text order. Each class has ``description`` (one line),
 #: ``params`` (name, kind, help, default) and ``signature()`` (e.g. ``gaps:P[,MEAN[,MAX]]``).
 MODELS: dict[str, type[Model]] = {
-    cls.name: cls for cls in (Angular, Uniform, Bias, Sine, Spatial, SpatialEnds, Outliers, Gaps, Block, Joints, Drop)
+    cls.name: cls
+    for cls in (Angular, Uniform, Bias, Sine, Spatial, SpatialEnds, Outliers, Jumps, Gaps, Block, Joints, Drop)
 }
 
 NONE = "none"
