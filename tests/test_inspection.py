@@ -195,3 +195,16 @@ def test_clean_and_bench_can_fill_what_inspect_flags_instead_of_trusting_it(embe
     )
     assert filled.to_json()["fill_suspects"] and not plain.to_json()["fill_suspects"]
     assert filled.summary["kalman"]["rms_angle_deg"] < 0.5 * plain.summary["kalman"]["rms_angle_deg"]
+
+
+def test_suspects_are_found_on_joints_with_gaps_too(embedded_walk):
+    """The rules read the observation bridged: a joint with a gap still has its spikes
+    found (a NaN once made its median score NaN, and no spike of it was flagged)."""
+    from workbench.data.inspection import suspects_missing
+
+    obs = parse_corruption("outliers:0.01+gaps:0.01").apply(embedded_walk, seed=5)
+    truth = (_pose_error_deg(embedded_walk, obs.bridged()) > 10.0) & obs.observed
+    filled = suspects_missing(obs)
+    found = obs.observed & ~filled.observed
+    assert truth.sum() > 100 and (found & truth).sum() >= 0.9 * truth.sum()
+    assert np.array_equal(np.isnan(filled.motion.channels), ~filled.channel_observed)

@@ -336,10 +336,13 @@ FILL_REASONS = ("spike", "turn", "jump", "linear")
 
 def suspects_missing(observation: Observation) -> Observation:
     """``observation`` with the samples the :data:`FILL_REASONS` rules flag on its
-    observed samples missing too, so that an engine fills them rather than trusts them."""
-    motion, observed = observation.motion, observation.observed
+    observed samples missing too, so that an engine fills them rather than trusts them.
+    The rules read the observation with its gaps bridged, as ``workbench inspect`` and the
+    app do (a NaN would make a joint's median spike score NaN and hide its spikes)."""
+    observed = observation.observed
+    motion = observation.bridged() if observation.has_gaps else observation.motion
     suspects = np.logical_or.reduce([RULES[reason](motion)[0] for reason in FILL_REASONS]) & observed
-    return Observation(motion, observed & ~suspects, observation.capture_step)
+    return Observation(observation.motion, observed & ~suspects, observation.capture_step)
 
 
 def inspect_motion(
