@@ -64,6 +64,9 @@ LINEAR_MIN_STEP = 0.01
 #: 12; the shared takes' runs and dashes reach 5.2, and the one step above 10 is a capture
 #: fault (CMU 03_02 holds its first pose for 23 frames, then jumps 11 cm)
 JUMP_SPEED_M_S = 10.0
+#: seconds within which a later fast step may undo a jump (a longer stray stretch is two
+#: jumps, each flagged at its step; the search stays short on a take full of them)
+JUMP_RETURN_S = 2.0
 #: relative change of a bone's length that counts as a stretch
 BONE_TOLERANCE = 0.02
 #: a robust engine's data weight below this is a rejected sample (Welsch: exp(-r^2 / p^2) < 0.1
@@ -193,10 +196,10 @@ def turn_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
 def jump_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """(flags (F, J) bool, the fastest step's speed (F, J) m/s) of the ``jump`` rule, on
     the body root. A step faster than :data:`JUMP_SPEED_M_S` that a later fast step
-    undoes (after it the root is back where a body could have walked to from where it
-    left, and less than half as far from there as it went) flags the frames between
-    them: the body was off its path there. One that nothing undoes (dropped frames, a
-    path that restarts elsewhere) flags both its frames."""
+    undoes within :data:`JUMP_RETURN_S` (after it the root is back where a body could
+    have walked to from where it left, and less than half as far from there as it went)
+    flags the frames between them: the body was off its path there. One that nothing
+    undoes (dropped frames, a path that restarts elsewhere) flags both its frames."""
     F, J = motion.n_frames, motion.skeleton.n_joints
     flags, speeds = np.zeros((F, J), bool), np.zeros((F, J))
     if F < 2:
@@ -208,19 +211,20 @@ def jump_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
         path = joint_positions(sk, motion.root_positions, motion.angles_deg, motion.translations)[:, b]
     path_m = path * (sk.unit_cm / 100.0)
     speed = np.linalg.norm(np.diff(path_m, axis=0), axis=1) * motion.fps
-    fast = list(np.flatnonzero(speed > JUMP_SPEED_M_S))  # NaN (a missing root) is not fast
-
-    def undoes(out: int, j: int) -> bool:
-        away = np.linalg.norm(path_m[out + 1 : j + 2] - path_m[out], axis=1)
-        return away[-1] * motion.fps <= JUMP_SPEED_M_S * (j + 1 - out) and away[-1] <= 0.5 * away[:-1].max()
-
-    while fast:
-        out = fast.pop(0)
-        back = next((k for k, j in enumerate(fast) if undoes(out, j)), None)
-        first, last = (out, out + 1) if back is None else (out + 1, fast[back])
+    fast = np.flatnonzero(speed > JUMP_SPEED_M_S)  # NaN (a missing root) is not fast
+    reach = int(JUMP_RETURN_S * motion.fps)
+    i = 0
+    while i < len(fast):
+        out = fast[i]
+        later = fast[i + 1 : np.searchsorted(fast, out + reach, side="right")]  # steps j with j + 1 - out <= reach
+        away = np.linalg.norm(path_m[out + 1 : out + reach + 2] - path_m[out], axis=1)  # from frame out + 1 on
+        k = later - out  # after step j the root is at frame out + 1 + k: away[k]; before, at most went[k - 1]
+        went = np.maximum.accumulate(away)
+        undone = np.flatnonzero((away[k] * motion.fps <= JUMP_SPEED_M_S * (k + 1)) & (away[k] <= 0.5 * went[k - 1]))
+        first, last = (out + 1, int(later[undone[0]])) if undone.size else (out, out + 1)
         flags[first : last + 1, b] = True
-        speeds[first : last + 1, b] = speed[out : out + 1 if back is None else last + 1].max()
-        del fast[: 0 if back is None else back + 1]
+        speeds[first : last + 1, b] = speed[out : (last if undone.size else out) + 1].max()
+        i += 1 + (int(undone[0]) + 1 if undone.size else 0)
     return flags, speeds
 
 

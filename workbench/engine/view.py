@@ -50,6 +50,7 @@ from .signal import rewrap_angles
 __all__ = [
     "body_skeleton",
     "body_joints",
+    "stretchy_joints",
     "to_body",
     "from_body",
     "model_skeleton",
@@ -216,11 +217,16 @@ class ModelView:
     source : Observation
         The take as given.
     observation : Observation
-        The take in its body view (:func:`body_skeleton`) at the model's rate ``fps``;
-        resampled up, its ``capture_step`` says how many of its frames a captured one spans.
+        The take in its body view (:func:`body_skeleton`), upright, at the model's rate
+        ``fps``; resampled up, its ``capture_step`` says how many of its frames a
+        captured one spans.
     bridged : Motion or None
         The take with its gaps bridged (:meth:`Observation.bridged`), made once where a
-        way needs it (resampling there, the joints above the body root back); else None.
+        way needs it (resampling there, the joints above the body root and the stretchy
+        bones' translations back); else None.
+    turn : numpy.ndarray or None
+        The turn (3, 3) that stood the take on +Y (:func:`workbench.core.upright.up_turn`);
+        None for a take standing on +Y.
     """
 
     source: Observation
@@ -291,7 +297,7 @@ class ModelView:
             motion = motion.with_channels(_resample_frames(_unwrapped(result.motion), t))
         if self.turn is not None:
             motion = turn_motion(motion, self.turn.T, body_skeleton(source.skeleton))
-        if self.bridged is not None:  # the take is not its own body view
+        if self.bridged is not None:  # (the motion as it is where the take is its own body view)
             motion = from_body(motion, self.bridged)
         X = rewrap_angles(motion.channels, source, copy=False)
         if keep_observed:
