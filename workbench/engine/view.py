@@ -349,16 +349,3 @@ class ModelView:
             out[:, 3 + 3 * b : 3 + 3 * skeleton.n_joints] = value[:, 3 : 3 + 3 * body.n_joints]
             return out
         return value
-        F = value.shape[0]
-        if value.ndim >= 2 and value.shape[1] == body.n_joints:
-            out = np.zeros((F, skeleton.n_joints) + value.shape[2:])
-            out[:, body_joints(skeleton)] = value
-            return out
-        if value.ndim == 2 and value.shape[1] == channel_count(body):
-            out = np.zeros((F, channel_count(skeleton)))
-            b = skeleton.body_root
-            t0 = angle_slice(skeleton).stop + 3 * skeleton.translated.index(b)
-            out[:, t0 : t0 + 3] = value[:, :3]
-            out[:, 3 + 3 * b : 3 + 3 * skeleton.n_joints] = value[:, 3:]
-            return out
-        return value
