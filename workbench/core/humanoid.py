@@ -148,7 +148,7 @@ class HumanoidMapping:
 
     def body_size_cm(self) -> float:
         """The rest-pose head-to-feet length of the canonical chain (module docstring), cm."""
-        rest = self.canonical_positions(rest_positions(self.skeleton)[None])[0] * self.skeleton.unit_cm
+        rest = self.canonical_positions(self.skeleton.rest_positions()[None])[0] * self.skeleton.unit_cm
 
         def chain(names) -> float:
             points = [rest[CANONICAL_JOINTS.index(n)] for n in names if self.joint(n) >= 0]
@@ -172,14 +172,6 @@ class HumanoidMapping:
         return "\n".join(lines)
 
 
-def rest_positions(skeleton: Skeleton) -> np.ndarray:
-    """(J, 3) the joints' rest-pose positions from the offsets (file units)."""
-    pos = np.zeros((skeleton.n_joints, 3))
-    for j, p in enumerate(skeleton.parents):
-        pos[j] = skeleton.offsets[j] + (pos[p] if p >= 0 else 0.0)
-    return pos
-
-
 class _Tree:
     """Ancestry and rest places of a skeleton, for the mapping rules."""
 
@@ -188,7 +180,7 @@ class _Tree:
         self.depth = [0] * skeleton.n_joints
         for j, p in enumerate(skeleton.parents):
             self.depth[j] = self.depth[p] + 1 if p >= 0 else 0
-        self.rest = rest_positions(skeleton)
+        self.rest = skeleton.rest_positions()
         self.scale = max(skeleton.rest_height(), 1e-9)
         self.in_body = [False] * skeleton.n_joints  # the body root and its descendants
         for j, p in enumerate(skeleton.parents):  # parents come before their children

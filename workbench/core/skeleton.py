@@ -219,14 +219,24 @@ class Skeleton:
         """A copy with the given fields changed (validated as a new Skeleton)."""
         return dataclasses.replace(self, **changes)
 
-    def rest_height(self, axis: int = 1) -> float:
-        """Extent of the rest pose along ``axis`` (file units), end sites included; its
-        height where ``axis`` is up (Y, BVH's convention, by default)."""
+    def rest_positions(self) -> np.ndarray:
+        """(J, 3) the joints' rest-pose positions from the offsets (file units)."""
         pos = np.zeros((self.n_joints, 3))
         for j, p in enumerate(self.parents):
             pos[j] = self.offsets[j] + (pos[p] if p >= 0 else 0.0)
-        ys = list(pos[:, axis]) + [pos[p, axis] + off[axis] for p, off in self.end_sites]
-        return float(max(ys) - min(ys))
+        return pos
+
+    def rest_extents(self) -> np.ndarray:
+        """(3,) the rest pose's extent along X, Y and Z (file units), end sites included."""
+        pos = self.rest_positions()
+        points = (
+            np.concatenate([pos, [pos[p] + np.asarray(off) for p, off in self.end_sites]]) if self.end_sites else pos
+        )
+        return points.max(axis=0) - points.min(axis=0)
+
+    def rest_height(self) -> float:
+        """Vertical extent of the rest pose (file units), end sites included; Y is up."""
+        return float(self.rest_extents()[1])
 
 
 def guess_unit_cm(skeleton: Skeleton) -> float:
@@ -236,8 +246,8 @@ def guess_unit_cm(skeleton: Skeleton) -> float:
 
     Falls back to 1.0 (centimetres) when none fits.
     """
-    extents = [skeleton.rest_height(axis) for axis in range(3)]
-    for height in (extents[1], max(extents)):
+    extents = skeleton.rest_extents()
+    for height in (extents[1], extents.max()):
         for unit_cm, _name in _KNOWN_UNITS_CM:
             if 120.0 <= height * unit_cm <= 220.0:
                 return unit_cm
