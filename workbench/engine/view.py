@@ -172,7 +172,7 @@ def model_motion(motion: Motion, overrides: Mapping[str, str | None] | None = No
     (``overrides``: the user's humanoid mapping, to find its up), at its own rate (the
     caller resamples)."""
     turn = up_turn(motion, overrides)
-    body = to_body(motion, body_skeleton(motion.skeleton))
+    body = to_body(motion)
     return body if turn is None else turn_motion(body, turn)
 
 
