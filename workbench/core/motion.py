@@ -183,6 +183,13 @@ def angle_slice(skeleton: Skeleton) -> slice:
     return slice(3, 3 + 3 * skeleton.n_joints)
 
 
+def body_position_column(skeleton: Skeleton) -> int:
+    """The first of the channel matrix's three columns that place the body root: the
+    root position's, or, under a reference node, the body root's translation."""
+    b = skeleton.body_root
+    return 0 if b == 0 else angle_slice(skeleton).stop + 3 * skeleton.translated.index(b)
+
+
 def length_columns(skeleton: Skeleton) -> np.ndarray:
     """Column indices into the channel matrix of the channels in file units, not degrees:
     the root position and the translations."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.motion import angle_slice
+from ..core.motion import body_position_column
 from .base import Model, Param, Work
 
 _K = Param("K", "scale", "noise level, in multiples of each channel's std")
@@ -129,8 +129,7 @@ class Jumps(Model):
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
         sk = work.skeleton
-        b = sk.body_root
-        col = 0 if b == 0 else angle_slice(sk).stop + 3 * sk.translated.index(b)  # its position channels
+        col = body_position_column(sk)
         for start in np.flatnonzero(rng.random(work.n_frames) < self.p):
             direction = rng.standard_normal(3)
             metres = rng.uniform(self.LOW_M, self.HIGH_M)

@@ -40,7 +40,7 @@ from typing import Mapping
 import numpy as np
 
 from ..core.channels import interpolate_frames, unwrap_deg
-from ..core.motion import Motion, Observation, angle_slice, channel_count
+from ..core.motion import Motion, Observation, angle_slice, body_position_column, channel_count
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
 from ..core.upright import turn_motion, turn_skeleton, turn_vectors, up_turn
@@ -344,7 +344,7 @@ class ModelView:
             return out
         if value.ndim == 2 and value.shape[1] == channel_count(body):
             out = np.zeros((F, channel_count(skeleton)))
-            t0 = 0 if b == 0 else angle_slice(skeleton).stop + 3 * skeleton.translated.index(b)
+            t0 = body_position_column(skeleton)
             out[:, t0 : t0 + 3] = value[:, :3]
             out[:, 3 + 3 * b : 3 + 3 * skeleton.n_joints] = value[:, 3 : 3 + 3 * body.n_joints]
             return out
