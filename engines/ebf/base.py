@@ -142,15 +142,25 @@ class WindowEngine(Engine):
         raise NotImplementedError
 
     # -- shared work ----------------------------------------------------------------
+    @property
+    def noise_context(self) -> bool:
+        """The network sees the take's own noise level (:func:`.features.noise_context`)."""
+        return getattr(self.params, "noise_context", False)
+
+    @property
+    def smoothing_context(self) -> bool:
+        """The network sees the width kalman would smooth the take with
+        (:func:`.features.smoothing_context`)."""
+        return getattr(self.params, "smoothing_context", False)
+
     def _frame_data(self, observation: Observation) -> FrameData:
-        p = self.params
         return frame_data(
             observation,
             Layout.of(observation.skeleton),
             self.norm_,
             self.WITH_MASK,
-            getattr(p, "noise_context", False),
-            getattr(p, "smoothing_context", False),
+            self.noise_context,
+            self.smoothing_context,
         )
 
     def clean(self, observation: Observation, /) -> CleanResult:

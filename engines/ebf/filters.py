@@ -110,14 +110,6 @@ class FilterEngine(WindowEngine):
     def quadratic(self) -> bool:
         return getattr(self.params, "quadratic", False)
 
-    @property
-    def noise_context(self) -> bool:
-        return getattr(self.params, "noise_context", False)
-
-    @property
-    def smoothing_context(self) -> bool:
-        return getattr(self.params, "smoothing_context", False)
-
     def _build_net(self, n_channels: int):
         import torch
 
