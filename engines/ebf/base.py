@@ -130,11 +130,12 @@ class WindowEngine(Engine):
         """The untrained network for ``n_channels`` joint-angle channels."""
         raise NotImplementedError
 
-    def _predict(self, net, windows, values, valid) -> tuple[Any, dict[str, Any]]:
+    def _predict(self, net, windows, values, valid, trig=None) -> tuple[Any, dict[str, Any]]:
         """Cleaned angles (B, C) in degrees of windows of codes (B, L, E), given the
         window's angle values (B, L, C) (or, without :attr:`WINDOW_VALUES`, possibly its
         centre frame's alone, (B, 1, C)) and ``valid`` (B, L); plus named (B, C)
-        diagnostics."""
+        diagnostics. ``trig``: the values' :class:`.nets.Trig` where the caller has it
+        (inference, with :attr:`WINDOW_VALUES`), for :func:`.nets.circular_mean`."""
         raise NotImplementedError
 
     def _training_pairs(self, motions: Sequence[Motion], epoch: int) -> list[tuple[Observation, Motion]]:
@@ -178,31 +179,42 @@ class WindowEngine(Engine):
         angles (N, C) in degrees and diagnostics (N, C), all windows batched."""
         import torch
 
+        from .nets import Trig
+
         preds = np.zeros((centres.size, data.values.shape[1]))
         diags: dict[str, np.ndarray] = {}  # filled chunk by chunk: no list of chunks to join
         reach = RADIUS * self.STRIDE  # frames from a window's centre to its ends
         with torch.inference_mode():
             codes = self.net_.encode(torch.from_numpy(data.inputs))
             values = torch.from_numpy(data.values)  # float64: filters in double precision
+            trig = Trig.of_degrees(values) if self.WINDOW_VALUES else None  # each frame's once
             inner = data.n_frames > 2 * reach  # windows that need no edge padding exist
             code_windows = _inner_windows(codes, RADIUS, self.STRIDE) if inner else None
-            value_windows = _inner_windows(values, RADIUS, self.STRIDE) if inner and self.WINDOW_VALUES else None
+            value_windows = trig_windows = None
+            if inner and self.WINDOW_VALUES:
+                value_windows = _inner_windows(values, RADIUS, self.STRIDE)
+                trig_windows = Trig(*(_inner_windows(t, RADIUS, self.STRIDE) for t in trig))
+            every_frame = torch.ones((self.INFERENCE_CHUNK, 2 * RADIUS + 1), dtype=torch.bool)
             for i in range(0, centres.size, self.INFERENCE_CHUNK):
                 chunk = centres[i : i + self.INFERENCE_CHUNK]
-                idx, valid = window_index(chunk, data.n_frames, RADIUS, self.STRIDE)
                 if chunk[0] >= reach and chunk[-1] < data.n_frames - reach and chunk[-1] - chunk[0] == len(chunk) - 1:
-                    window_codes = code_windows[chunk[0] - reach : chunk[-1] - reach + 1]  # consecutive: views
-                    window_values = (
-                        value_windows[chunk[0] - reach : chunk[-1] - reach + 1]
-                        if self.WINDOW_VALUES
-                        else values[chunk[0] : chunk[-1] + 1, None]
-                    )
+                    run = slice(chunk[0] - reach, chunk[-1] - reach + 1)  # consecutive: views
+                    valid = every_frame[: len(chunk)]
+                    window_codes = code_windows[run]
+                    if self.WINDOW_VALUES:
+                        window_values, window_trig = value_windows[run], Trig(*(t[run] for t in trig_windows))
+                    else:
+                        window_values, window_trig = values[chunk[0] : chunk[-1] + 1, None], None
                 else:
-                    idx_t = torch.from_numpy(idx)
+                    idx, valid = window_index(chunk, data.n_frames, RADIUS, self.STRIDE)
+                    idx_t, valid = torch.from_numpy(idx), torch.from_numpy(valid)
                     window_codes = codes[idx_t]
-                    window_values = values[idx_t if self.WINDOW_VALUES else idx_t[:, RADIUS, None]]
-                pred, diag = self._predict(self.net_, window_codes, window_values, torch.from_numpy(valid))
-                done = slice(i, i + len(idx))
+                    if self.WINDOW_VALUES:
+                        window_values, window_trig = values[idx_t], Trig(*(t[idx_t] for t in trig))
+                    else:
+                        window_values, window_trig = values[idx_t[:, RADIUS, None]], None
+                pred, diag = self._predict(self.net_, window_codes, window_values, valid, window_trig)
+                done = slice(i, i + len(chunk))
                 preds[done] = pred.double().numpy()
                 for key, value in diag.items():
                     if key not in diags:  # (setdefault's default was a whole-take array made every chunk)

@@ -136,7 +136,7 @@ class FilterEngine(WindowEngine):
             net.head[-1].bias[: start.numel()] = start
         return net
 
-    def _predict(self, net, windows, values, valid):
+    def _predict(self, net, windows, values, valid, trig=None):
         import torch
 
         from .nets import (
@@ -153,14 +153,14 @@ class FilterEngine(WindowEngine):
         z = net(windows).to(values.dtype)
         offsets = offsets_like(values)
         if self.free:
-            out, weights = filter_windows(z[:, : L * C].reshape(B, L, C), values, valid)
+            out, weights = filter_windows(z[:, : L * C].reshape(B, L, C), values, valid, trig)
             sigma = weights_sigma(weights, offsets)
         else:
             sigma = sigma_frames(z[:, :C])
             if self.quadratic:
-                out = circular_mean(local_quadratic_weights(sigma, offsets, valid), values)
+                out = circular_mean(local_quadratic_weights(sigma, offsets, valid), values, trig)
             else:
-                out = gaussian_filter(sigma, values, valid)
+                out = gaussian_filter(sigma, values, valid, trig)
         diag = {"filter_sigma_frames": sigma}
         if self.bias:
             bias = z[:, -C:] * torch.as_tensor(self.norm_.angle_std, dtype=values.dtype)

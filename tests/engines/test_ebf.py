@@ -21,6 +21,7 @@ from engines.ebf.features import (  # noqa: E402
     window_index,
 )
 from engines.ebf.nets import (  # noqa: E402
+    Trig,
     circular_mean,
     filter_windows,
     gaussian_filter,
@@ -120,6 +121,21 @@ def test_local_quadratic_weights_reproduce_a_parabola_and_sum_to_one():
     assert torch.allclose(circular_mean(weights, values), torch.full((4, 3), 0.3, dtype=torch.float64), atol=1e-7)
     mean, _ = filter_windows(gaussian_logits(sigma, offsets_like(values)), values, valid)
     assert abs(float(mean[0, 1]) - (0.3 - 0.001 * 3.0**2)) < 1e-4
+
+
+def test_the_circular_mean_from_the_angles_sines_and_cosines_is_the_same():
+    """Inference passes each frame's sines and cosines; the mean is the same as from the
+    windows' deviations from their centre: on the centre's branch, whole turns, spreads
+    across +-180 degrees and negative weights included."""
+    g = torch.Generator().manual_seed(3)
+    values = 170.0 + 40.0 * torch.randn(6, L, 5, generator=g, dtype=torch.float64)
+    values[1] += 720.0  # an unwrapped channel, two turns up
+    values[2, ::2] -= 360.0  # every other frame a turn down
+    weights = torch.rand(6, L, 5, generator=g, dtype=torch.float64) - 0.2  # some negative
+    weights[:, RADIUS] += L  # the sum stays positive
+    direct = circular_mean(weights, values)
+    assert torch.allclose(circular_mean(weights, values, Trig.of_degrees(values)), direct, rtol=0, atol=1e-9)
+    assert (direct - values[:, RADIUS]).abs().max() < 180.0
 
 
 def test_local_quadratic_weights_fall_back_to_the_gaussian_where_a_fit_is_ill_posed():
