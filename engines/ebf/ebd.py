@@ -130,7 +130,7 @@ class EBD(WindowEngine):
             window=2 * RADIUS + 1,
         )
 
-    def _predict(self, net, windows, values, valid):
+    def _predict(self, net, windows, values, valid, trig=None):
         import torch
 
         centre = values[:, values.shape[1] // 2]
@@ -175,12 +175,13 @@ class EBD(WindowEngine):
         centres = np.flatnonzero(data.missing.any(axis=1))
         if centres.size:
             pred, _ = self._run(data, centres)
-            block = np.ix_(centres, angle_columns(observation.skeleton))
+            rows, cols = np.nonzero(data.missing[centres])  # the missing entries alone: a tenth of a gappy take
+            frames = centres[rows]
             blend, share = self.params.blend_frames, 1.0
             if blend > 0:
-                share = np.repeat(np.clip(gap_distance(joint_missing(data))[centres] / blend, 0.0, 1.0), 3, axis=1)
-            base = self._bridge(observation, data)[centres]
-            X[block] = np.where(data.missing[centres], base + share * (pred - base), X[block])
+                share = np.clip(gap_distance(joint_missing(data))[frames, cols // 3] / blend, 0.0, 1.0)
+            base = self._bridge(observation, data)[frames, cols]
+            X[frames, angle_columns(observation.skeleton)[cols]] = base + share * (pred[rows, cols] - base)
             del pred, share, base
         del data
         out = rewrap_angles(X, observation, copy=False)
