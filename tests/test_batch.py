@@ -4,6 +4,7 @@ cluster, interrupts."""
 
 import json
 import os
+import sys
 import time
 
 import pytest
@@ -154,3 +155,13 @@ def test_a_folder_cleaned_with_its_suspects_filled_says_so_and_resumes_only_so(l
     assert json.loads((out / batch.MANIFEST).read_text())["fill_suspects"] is True
     assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--resume"]) == 2
     assert "--resume would mix the two" in capsys.readouterr().err
+
+
+def test_the_allocator_keeps_freed_arrays_where_glibc_runs_it():
+    """On Linux with glibc (this project's CI) mallopt accepts both thresholds; elsewhere
+    nothing is changed and the call says so."""
+    import platform
+
+    from workbench.allocator import keep_freed_arrays
+
+    assert keep_freed_arrays() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")

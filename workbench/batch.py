@@ -143,10 +143,15 @@ _ENGINES: dict[tuple[str, str | None], object] = {}
 
 def worker_engine(spec: str, mapping: str | None = None):
     """The engine ``spec`` (with the humanoid ``mapping`` file's overrides), made once per
-    process and kept."""
+    process and kept; the first one also tunes the worker's allocator for long takes, as
+    the command line does (:func:`workbench.allocator.keep_freed_arrays`)."""
     key = (spec, mapping)
     if key not in _ENGINES:
         from . import registry
+        from .allocator import keep_freed_arrays
+
+        if not _ENGINES:
+            keep_freed_arrays()
 
         engine = registry.create(spec)
         if mapping:

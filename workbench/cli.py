@@ -948,6 +948,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from .allocator import keep_freed_arrays
+
+    keep_freed_arrays()  # a long take's freed arrays reused, not faulted in afresh
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
