@@ -187,22 +187,22 @@ class WindowEngine(Engine):
         with torch.inference_mode():
             codes = self.net_.encode(torch.from_numpy(data.inputs))
             values = torch.from_numpy(data.values)  # float64: filters in double precision
-            trig = Trig.of_degrees(values) if self.WINDOW_VALUES else None  # each frame's once
             inner = data.n_frames > 2 * reach  # windows that need no edge padding exist
             code_windows = _inner_windows(codes, RADIUS, self.STRIDE) if inner else None
-            value_windows = trig_windows = None
-            if inner and self.WINDOW_VALUES:
-                value_windows = _inner_windows(values, RADIUS, self.STRIDE)
-                trig_windows = Trig(*(_inner_windows(t, RADIUS, self.STRIDE) for t in trig))
+            value_windows = _inner_windows(values, RADIUS, self.STRIDE) if inner and self.WINDOW_VALUES else None
             every_frame = torch.ones((self.INFERENCE_CHUNK, 2 * RADIUS + 1), dtype=torch.bool)
             for i in range(0, centres.size, self.INFERENCE_CHUNK):
                 chunk = centres[i : i + self.INFERENCE_CHUNK]
+                if self.WINDOW_VALUES:  # the sines and cosines of the frames the windows span, each once
+                    first = max(chunk[0] - reach, 0)
+                    trig = Trig.of_degrees(values[first : min(chunk[-1] + reach, data.n_frames - 1) + 1])
                 if chunk[0] >= reach and chunk[-1] < data.n_frames - reach and chunk[-1] - chunk[0] == len(chunk) - 1:
                     run = slice(chunk[0] - reach, chunk[-1] - reach + 1)  # consecutive: views
                     valid = every_frame[: len(chunk)]
                     window_codes = code_windows[run]
                     if self.WINDOW_VALUES:
-                        window_values, window_trig = value_windows[run], Trig(*(t[run] for t in trig_windows))
+                        window_values = value_windows[run]
+                        window_trig = Trig(*(_inner_windows(t, RADIUS, self.STRIDE) for t in trig))
                     else:
                         window_values, window_trig = values[chunk[0] : chunk[-1] + 1, None], None
                 else:
@@ -210,7 +210,7 @@ class WindowEngine(Engine):
                     idx_t, valid = torch.from_numpy(idx), torch.from_numpy(valid)
                     window_codes = codes[idx_t]
                     if self.WINDOW_VALUES:
-                        window_values, window_trig = values[idx_t], Trig(*(t[idx_t] for t in trig))
+                        window_values, window_trig = values[idx_t], Trig(*(t[idx_t - first] for t in trig))
                     else:
                         window_values, window_trig = values[idx_t[:, RADIUS, None]], None
                 pred, diag = self._predict(self.net_, window_codes, window_values, valid, window_trig)
