@@ -65,6 +65,31 @@ def test_alternative_and_nearest_euler():
     assert np.allclose(rot.nearest_euler(a, ref), [[370.0, 20.0, -330.0]])
 
 
+@given(x=arrays(np.float64, 50, elements=st.floats(-1e4, 1e4)))
+@settings(max_examples=50, deadline=None)
+def test_wrap_deg_shifts_by_whole_turns_into_a_half_turn_either_side(x):
+    w = rot.wrap_deg(x)
+    assert ((w >= -180.0 - 1e-9) & (w < 180.0)).all()
+    turns = (x - w) / 360.0
+    assert np.allclose(turns, np.round(turns), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@given(a=angles, shift=arrays(np.float64, (5, 3), elements=st.floats(-500.0, 500.0)))
+@settings(max_examples=30, deadline=None)
+def test_nearest_euler_is_the_nearest_of_both_triples_and_their_turns(order, a, shift):
+    """Against a brute force over both triples shifted by -3..3 whole turns per angle."""
+    reference = a + shift
+    near = rot.nearest_euler(a, reference)
+    assert np.allclose(rot.euler_to_matrix(near, order), rot.euler_to_matrix(a, order), atol=1e-9)
+    turns = 360.0 * np.arange(-3, 4)
+    best = np.full(len(a), np.inf)
+    for triple in (a, rot.alternative_euler(a)):
+        steps = triple[..., None] + turns - reference[..., None]  # (5, 3, 7)
+        best = np.minimum(best, (np.min(np.abs(steps), axis=-1) ** 2).sum(axis=-1))
+    assert np.allclose(((near - reference) ** 2).sum(axis=-1), best, rtol=1e-9, atol=1e-6)
+
+
 def test_vectors_to_rotation_and_kabsch():
     rng = np.random.default_rng(2)
     a, b = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
