@@ -139,13 +139,16 @@ def test_the_long_benchmark_times_a_clean_command_per_engine(embedded_root):
     from workbench.evaluate import long_take, run_long_benchmark
 
     long = long_take(find_clip("cmu/walk/35_31", embedded_root).load(), minutes=0.1)
-    result = run_long_benchmark(long, ["kalman", "no-such-engine"], "angular:0.5+gaps:0.01")
+    result = run_long_benchmark(long, ["kalman", "no-such-engine", "ebf"], "angular:0.5+gaps:0.01")
     assert result.frames == 720 and result.io["read_frames_per_s"] > 0 and result.io["megabytes"] > 0
-    kalman, bad = result.rows
+    kalman, bad, ebf = result.rows
     assert kalman["engine"] == "kalman" and kalman["frames_per_s"] > 0 and 0.05 < kalman["peak_gb"] < 4
     assert kalman["command_s"] > kalman["clean_s"] and "no-such-engine" in bad["error"]
+    assert ebf["frames_per_s"] > 0
+    (stream,) = result.streams  # kalman does not stream
+    assert stream["engine"] == "ebf" and stream["ms_per_frame"] > 0
     table = result.markdown()
-    assert "| kalman |" in table and "failed:" in table and "frames/s" in table
+    assert "| kalman |" in table and "failed:" in table and "frames/s" in table and "ms per pushed frame" in table
 
 
 def test_a_folder_cleaned_with_its_suspects_filled_says_so_and_resumes_only_so(library, tmp_path, capsys):

@@ -587,6 +587,9 @@ class LongResult:
     fps: float
     io: dict[str, float]
     rows: list[dict] = field(default_factory=list)
+    #: one per engine that streams (:func:`stream_ms_per_frame`): ``engine`` and
+    #: ``ms_per_frame``, or ``error``
+    streams: list[dict] = field(default_factory=list)
 
     def markdown(self) -> str:
         io = self.io
@@ -606,6 +609,10 @@ class LongResult:
                 f"| {r['engine']} | {r['clean_s']:.1f} | {r['frames_per_s']:,.0f} | {r['command_s']:.1f} | "
                 f"{r['peak_gb']:.2f} |"
             )
+        if self.streams:
+            lines += ["", f"| stream ({STREAM_FRAMES:,} frames) | ms per pushed frame |", "|---|---|"]
+            for r in self.streams:
+                lines.append(f"| {r['engine']} | {r['error'] if 'error' in r else format(r['ms_per_frame'], '.3f')} |")
         return "\n".join(lines)
 
 
@@ -648,7 +655,8 @@ def run_long_benchmark(
             "write_frames_per_s": motion.n_frames / write_s,
         }
         observation = parse_corruption(corruption).apply(motion, seed=seed)
-        write_bvh(noisy_path, observation.bridged())
+        noisy = observation.bridged()
+        write_bvh(noisy_path, noisy)
         write_mask(sidecar_path(noisy_path), observation.observed, motion.skeleton)
         result = LongResult(motion.n_frames, motion.fps, io)
         for spec in engine_specs:
@@ -675,4 +683,33 @@ def run_long_benchmark(
                     "peak_gb": usage.ru_maxrss / 2**20,  # kB on Linux
                 }
             )
+    for row in result.rows:  # the engines that cleaned it and stream: timed here, in this process
+        spec = row["engine"]
+        if "error" in row or not hasattr(registry.create(spec, pretrained=False), "stream"):
+            continue
+        try:
+            result.streams.append({"engine": spec, "ms_per_frame": stream_ms_per_frame(registry.create(spec), noisy)})
+        except EngineError as err:  # a variant that cannot stream (it measures the whole take)
+            result.streams.append({"engine": spec, "error": str(err)})
     return result
+
+
+#: frames ``bench --long`` pushes through each streaming engine (10 s at 120 fps), after a
+#: take of :data:`STREAM_WARMUP` frames that pays the first calls' costs
+STREAM_FRAMES, STREAM_WARMUP = 1200, 50
+
+
+def stream_ms_per_frame(engine: Engine, motion: Motion) -> float:
+    """Milliseconds per pushed frame of ``engine``'s stream (``engine.stream``) over the
+    first :data:`STREAM_FRAMES` frames of ``motion`` (complete frames), its flush
+    included, after a warm-up take of the first :data:`STREAM_WARMUP`."""
+    frames = motion.channels[:STREAM_FRAMES]
+    stream = engine.stream(motion.skeleton, motion.fps)
+    for frame in frames[:STREAM_WARMUP]:
+        stream.push(frame)
+    stream.flush()
+    t0 = time.perf_counter()
+    for frame in frames:
+        stream.push(frame)
+    stream.flush()
+    return (time.perf_counter() - t0) / len(frames) * 1e3
