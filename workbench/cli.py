@@ -626,7 +626,7 @@ def cmd_gui(args) -> int:
     specs = split_engine_specs(args.engine) if args.engine else None
     if args.measure_fps is not None:
         return _measure_fps(args, specs)
-    return run_gui(args.clip, args.corrupt, args.seed, specs)
+    return run_gui(args.clip, args.corrupt, args.seed, specs, args.fill_suspects)
 
 
 def _measure_fps(args, specs) -> int:
@@ -643,7 +643,12 @@ def _measure_fps(args, specs) -> int:
             ["xvfb-run", "-a", "-s", "-screen 0 1600x1000x24", sys.executable, "-m", "workbench", *sys.argv[1:]]
         )
     window = open_window(
-        args.clip or DEFAULT_CLIP, args.corrupt or DEFAULT_CORRUPTION, args.seed or 0, specs, size=WINDOW_SIZE
+        args.clip or DEFAULT_CLIP,
+        args.corrupt or DEFAULT_CORRUPTION,
+        args.seed or 0,
+        specs,
+        size=WINDOW_SIZE,
+        fill_suspects=bool(args.fill_suspects),
     )
     rates = measure_playback(window, args.measure_fps)
     size = window.size()
@@ -923,6 +928,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="instead of opening the app for use: play the take for SECONDS in a 1200 x 800 window and print the "
         "frames per second the 3D views showed",
+    )
+    sp.add_argument(
+        "--fill-suspects",
+        action="store_true",
+        default=None,
+        help="as clean --fill-suspects: the fill suspects box ticked (default: as the app was left, with no take)",
     )
     sp.set_defaults(func=cmd_gui, clip=None, corrupt=None, seed=None)
 

@@ -22,16 +22,17 @@ def test_no_arguments_opens_the_gui_on_the_last_or_the_default_take(monkeypatch)
     calls = []
     monkeypatch.setattr(workbench.app.main, "run_gui", lambda *args: calls.append(args) or 0)
     assert cli.main([]) == 0
-    assert calls == [(None, None, None, None)]  # run_gui: the last session's take, else the defaults
+    assert calls == [(None,) * 5]  # run_gui: the last session's take, else the defaults
 
 
-def test_gui_takes_a_clip_corruption_seed_and_engines(monkeypatch):
+def test_gui_takes_a_clip_corruption_seed_engines_and_the_fill(monkeypatch):
     import workbench.app.main
 
     calls = []
     monkeypatch.setattr(workbench.app.main, "run_gui", lambda *args: calls.append(args) or 0)
     cli.main(["gui", "take.bvh", "--corrupt", "none", "--seed", "3", "--engine", "identity,lerp>gaussian"])
-    assert calls == [("take.bvh", "none", 3, ["identity", "lerp>gaussian"])]
+    cli.main(["gui", "take.bvh", "--fill-suspects"])
+    assert calls == [("take.bvh", "none", 3, ["identity", "lerp>gaussian"], None), ("take.bvh", None, None, None, True)]
 
 
 def test_gui_stops_on_a_bad_corruption_spec(capsys):

@@ -5,6 +5,7 @@ and an engine that fails."""
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 import sys
 
@@ -430,7 +431,14 @@ def test_the_window_keeps_its_state_between_runs(window, tmp_path):
         "print(repr(saved_take(QSettings(sys.argv[1], QSettings.IniFormat))))\n"
     )
     run = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=60)
-    assert run.stdout.strip() == repr((s.take.source, s.take.corruption, s.take.seed, ["identity"])), run.stderr
+    assert run.stdout.strip() == repr((s.take.source, s.take.corruption, s.take.seed, ["identity"], False)), run.stderr
+    given = s.take
+    s.take = dataclasses.replace(given, fill_suspects=True)  # as the ticked box leaves it
+    try:
+        save_state(window, settings)
+    finally:
+        s.take = given
+    assert saved_take(QSettings(str(path), QSettings.IniFormat))[-1] is True
     (path).write_text("[take]\nsource=x.bvh\ncorruption=none\nseed=zero\n")  # edited by hand: ignored
     assert saved_take(QSettings(str(path), QSettings.IniFormat)) is None
 

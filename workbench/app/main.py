@@ -69,18 +69,20 @@ def open_window(
     specs: list[str] | None = None,
     size: tuple[int, int] = WINDOW_SIZE,
     settings=None,
+    fill_suspects: bool = False,
 ):
-    """A shown main window loading ``source``, its engines queued to run, ``size`` pixels
-    or the screen's available area where that is smaller. The take loads on the worker
-    while the window is being built. With ``settings`` (a QSettings) the window takes
-    the geometry saved there and saves its state there when it closes."""
+    """A shown main window loading ``source`` (with ``fill_suspects``, its suspects made
+    gaps: the **fill suspects** box), its engines queued to run, ``size`` pixels or the
+    screen's available area where that is smaller. The take loads on the worker while
+    the window is being built. With ``settings`` (a QSettings) the window takes the
+    geometry saved there and saves its state there when it closes."""
     application()
     from .session import Session
     from .window import MainWindow
 
     session = Session()
     session.set_specs(default_engines() if specs is None else specs)
-    session.open(source, corruption, seed)
+    session.open(source, corruption, seed, fill_suspects)
     window = MainWindow(session, settings)
     session.setParent(window)
     fit_to_screen(window, size)
@@ -104,55 +106,63 @@ def fit_to_screen(window, size: tuple[int, int]) -> None:
 #: where the app keeps its state between runs (QSettings: organisation, application)
 SETTINGS_NAME = ("mocap-workbench", "workbench")
 GEOMETRY_KEY = "window/geometry"
-TAKE_KEYS = ("take/source", "take/corruption", "take/seed", "engines/specs")
+TAKE_KEYS = ("take/source", "take/corruption", "take/seed", "engines/specs", "take/fill_suspects")
 
 
 def save_state(window, settings) -> None:
-    """Keep the window's geometry, its take (source, corruption, seed) and its engines."""
+    """Keep the window's geometry, its take (source, corruption, seed, whether its
+    suspects are filled) and its engines."""
     s = window.session
     settings.setValue(GEOMETRY_KEY, window.saveGeometry())
     if s.take is not None:
-        # the engines as JSON: a settings file gives a one-item list back as a string
-        values = (s.take.source, s.take.corruption, s.take.seed, json.dumps(s.specs))
+        # the engines and the flag as JSON: a settings file gives a one-item list back as
+        # a string, and a bool as "true"
+        values = (s.take.source, s.take.corruption, s.take.seed, json.dumps(s.specs), json.dumps(s.take.fill_suspects))
         for key, value in zip(TAKE_KEYS, values):
             settings.setValue(key, value)
     settings.sync()
 
 
-def saved_take(settings) -> tuple[str, str, int, list[str]] | None:
-    """The take and engines :func:`save_state` kept, None when there are none (or they
-    cannot be read back)."""
-    source, corruption, seed, specs = (settings.value(key) for key in TAKE_KEYS)
+def saved_take(settings) -> tuple[str, str, int, list[str], bool] | None:
+    """The take, engines and fill-suspects flag :func:`save_state` kept (the flag False
+    where an older run kept none), None when there are none (or they cannot be read back)."""
+    source, corruption, seed, specs, fill = (settings.value(key) for key in TAKE_KEYS)
     if not source or corruption is None:
         return None
     try:
-        specs = json.loads(specs)
-        if not isinstance(specs, list):
+        specs, fill = json.loads(specs), json.loads(fill or "false")
+        if not isinstance(specs, list) or not isinstance(fill, bool):
             return None
-        return str(source), str(corruption), int(seed), [str(x) for x in specs]
+        return str(source), str(corruption), int(seed), [str(x) for x in specs], fill
     except (TypeError, ValueError):
         return None
 
 
 def run_gui(
-    source: str | None = None, corruption: str | None = None, seed: int | None = None, specs: list[str] | None = None
+    source: str | None = None,
+    corruption: str | None = None,
+    seed: int | None = None,
+    specs: list[str] | None = None,
+    fill_suspects: bool | None = None,
 ) -> int:
     """Open the window and run the event loop until it closes. What is not given is taken
     from the last session (:func:`saved_take`) when nothing is given, else the defaults
-    (:data:`DEFAULT_CLIP`, :data:`DEFAULT_CORRUPTION`, seed 0, :func:`default_engines`)."""
+    (:data:`DEFAULT_CLIP`, :data:`DEFAULT_CORRUPTION`, seed 0, :func:`default_engines`,
+    suspects not filled)."""
     app = application()
     from PySide6.QtCore import QSettings
 
     settings = QSettings(*SETTINGS_NAME)
-    last = saved_take(settings) if (source, corruption, seed, specs) == (None,) * 4 else None
+    last = saved_take(settings) if (source, corruption, seed, specs, fill_suspects) == (None,) * 5 else None
     if last is not None:
-        source, corruption, seed, specs = last
+        source, corruption, seed, specs, fill_suspects = last
     window = open_window(  # noqa: F841 (kept alive while the loop runs)
         source or DEFAULT_CLIP,
         DEFAULT_CORRUPTION if corruption is None else corruption,
         seed or 0,
         specs,
         settings=settings,
+        fill_suspects=bool(fill_suspects),
     )
     return app.exec()
 
