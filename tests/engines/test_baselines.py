@@ -400,6 +400,18 @@ def test_angle_levers_keep_the_reference_where_the_noise_is_in_the_angles(corrup
     assert not ik["reference_frames"][:, feet].any()  # the feet's 13 cm are beyond the lever
 
 
+def test_a_take_is_taken_for_position_noise_only_clear_of_the_angle_noise_range(clip):
+    """The threshold lies midway between the validation takes' largest mean log ratio
+    under angle noise (-0.05) and their least under position noise (0.68): a Mixamo
+    retarget at +0.03 under ``angular:0.5`` is angle noise."""
+    from workbench.engine.smoothing import _noise_is_in_positions
+
+    position = np.full(12, 1.0)  # variances, far above the floor
+    assert not _noise_is_in_positions(clip.skeleton, position * np.exp(0.03), position)
+    assert _noise_is_in_positions(clip.skeleton, position * np.exp(0.68), position)
+    assert not _noise_is_in_positions(clip.skeleton, position * np.exp(0.68), position * 1e-12)  # below the floor
+
+
 @pytest.mark.parametrize(
     "corruption, bridge",
     [
