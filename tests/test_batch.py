@@ -168,3 +168,18 @@ def test_the_allocator_keeps_freed_arrays_where_glibc_runs_it():
     from workbench.allocator import keep_freed_arrays
 
     assert keep_freed_arrays() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
+
+
+def test_a_take_at_one_frame_a_second_is_cleaned_with_a_note_on_its_frame_time(embedded_root, tmp_path):
+    from workbench.data import find_clip
+    from workbench.io import write_bvh
+    from workbench.registry import create
+
+    walk = find_clip("cmu/walk/35_31", embedded_root).load().slice(0, 40)
+    take = tmp_path / "posed.bvh"
+    write_bvh(take, walk.replace(fps=1.0))  # as a Blender export that left its frame time at 1 s
+    report = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh")
+    (note,) = report.notes
+    assert "runs at 1 fps (Frame Time 1 s)" in note and "mend that line" in note and "4,800 frames" in note
+    write_bvh(take, walk)
+    assert batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes == ()

@@ -66,6 +66,12 @@ class TakeReport:
         )
 
 
+#: frames per second below which ``clean`` says a take's frame time looks wrong: motion
+#: capture runs at 24-240 fps, and a take whose exporter left its frame time at 1 s (a
+#: Blender export did) is resampled 120-fold by the engines that work at 120 fps
+LEAST_CAPTURE_FPS = 10.0
+
+
 def clean_file(
     engine,
     source: Path,
@@ -88,6 +94,12 @@ def clean_file(
     source, output = Path(source), Path(output)
     motion = read_motion(source)
     notes = []
+    if motion.fps < LEAST_CAPTURE_FPS:
+        notes.append(
+            f"{source} runs at {motion.fps:g} fps (Frame Time {1 / motion.fps:g} s), far below any capture's "
+            f"rate; if its exporter wrote the wrong frame time, mend that line: an engine that works at 120 fps "
+            f"resamples the take to {motion.n_frames * 120 / motion.fps:,.0f} frames"
+        )
     observed, mask_path = take_mask(source, motion.skeleton, motion.n_frames, mask)
     if mask_path and not mask:
         notes.append(f"using the mask sidecar {mask_path}")
