@@ -626,8 +626,10 @@ def run_long_benchmark(
     """Time reading and writing ``motion`` as BVH (the best of :data:`IO_REPEATS`),
     corrupt it (``workbench corrupt``'s files: the BVH and its mask), then clean it with
     each engine by a ``workbench clean`` process of its own: its clean alone (as it
-    reports), the whole command, its peak resident memory. ``folder``: where the files go
-    (default: a temporary folder)."""
+    reports), the whole command, its peak resident memory; and push the corrupted take
+    through each of those engines that streams, in this process
+    (:func:`stream_ms_per_frame`). ``folder``: where the files go (default: a temporary
+    folder)."""
     import os
     import re
     import subprocess
