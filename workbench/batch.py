@@ -95,10 +95,12 @@ def clean_file(
     motion = read_motion(source)
     notes = []
     if motion.fps < LEAST_CAPTURE_FPS:
+        from .engine.base import UNIVERSAL_FPS
+
         notes.append(
             f"{source} runs at {motion.fps:g} fps (Frame Time {1 / motion.fps:g} s), far below any capture's "
-            f"rate; if its exporter wrote the wrong frame time, mend that line: an engine that works at 120 fps "
-            f"resamples the take to {motion.n_frames * 120 / motion.fps:,.0f} frames"
+            f"rate; if its exporter wrote the wrong frame time, mend that line: an engine that works at "
+            f"{UNIVERSAL_FPS:g} fps resamples the take to {motion.n_frames * UNIVERSAL_FPS / motion.fps:,.0f} frames"
         )
     observed, mask_path = take_mask(source, motion.skeleton, motion.n_frames, mask)
     if mask_path and not mask:
