@@ -205,7 +205,10 @@ def test_skeleton_command_prints_the_mapping_and_reads_a_mapping_file(tmp_path, 
     take = find_clip("cmu-daz/kick/10_01").path
     assert main(["skeleton", str(take)]) == 0
     out = capsys.readouterr().out
-    assert "43 joints" in out and "left_toes        -  (optional)" in out and "unmapped (24" in out
+    assert "43 joints" in out and "left_toes        -  (optional)" in out
+    # the buttocks lie between the hips and the thighs: aimed, not kept; the fingers and eyes kept
+    assert "unmapped above mapped joints (2, aimed along the chain): rButtock, lButtock" in out
+    assert "unmapped (22, keep their own angles): leftEye, rightEye, rThumb1" in out
     mapping = tmp_path / "map.json"
     mapping.write_text(json.dumps({"neck": None}))
     assert main(["skeleton", str(take), "--mapping", str(mapping)]) == 0
@@ -213,3 +216,33 @@ def test_skeleton_command_prints_the_mapping_and_reads_a_mapping_file(tmp_path, 
     mapping.write_text("[1, 2]")
     assert main(["skeleton", str(take), "--mapping", str(mapping)]) == 2
     assert "map.json: a mapping file is one JSON object" in capsys.readouterr().err
+
+
+def test_a_long_spine_bends_about_its_mapped_joint():
+    """HumanIK's Spine1 and Spine2 lie between the mapped spine and chest. Poses that bend
+    the spine joint alone come back from their canonical positions as that bend, the
+    unmapped joints at the reference's angles: their targets follow the reference chain
+    turned about the spine (moved with the chest instead, they would aim the spine at
+    Spine1, one 12-cm bone away, and bend the chain there)."""
+    from workbench.core.kinematics import forward_kinematics
+    from workbench.core.rotations import euler_to_matrix, matrix_to_euler, vectors_to_rotation
+    from workbench.engine.canonical import CanonicalBody
+
+    body = CanonicalBody(map_humanoid(HUMANIK))
+    spine = HUMANIK.names.index("Spine")
+    assert body.mapping.joint("spine") == spine and HUMANIK.names[body.mapping.joint("chest")] == "Spine3"
+    reference = np.zeros((3, HUMANIK.n_joints, 3))
+    up = np.array([0.0, 1.0, 0.0])
+    leans = np.array([[0.3, 1.0, 0.0], [0.0, 1.0, -0.4], [-0.5, 1.0, 0.5]])
+    bent = reference.copy()  # a bend with no twist about the bone: the aim alone cannot tell one
+    bent[:, spine] = matrix_to_euler(
+        vectors_to_rotation(np.broadcast_to(up, leans.shape), leans), HUMANIK.rotation_order(spine)
+    )
+    positions, _ = forward_kinematics(HUMANIK, np.zeros((3, 3)), bent)
+    root, angles, _ = body.solve(body.positions(positions), np.zeros((3, 3)), reference)
+    assert np.allclose(root, 0.0, atol=1e-9)
+    solved = euler_to_matrix(angles[:, spine], HUMANIK.rotation_order(spine))
+    truth = euler_to_matrix(bent[:, spine], HUMANIK.rotation_order(spine))
+    assert np.allclose(solved, truth, atol=1e-9)
+    others = np.arange(HUMANIK.n_joints) != spine
+    assert np.allclose(angles[:, others], 0.0, atol=1e-7)

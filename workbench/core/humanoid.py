@@ -134,9 +134,29 @@ class HumanoidMapping:
 
     def unmapped_joints(self) -> tuple[int, ...]:
         """The take's joints no canonical joint takes (fingers, extra spine or neck joints,
-        reference nodes above the hips), ascending: they keep their own angles."""
+        reference nodes above the hips), ascending."""
         used = set(self.joints)
         return tuple(j for j in range(self.skeleton.n_joints) if j not in used)
+
+    def kept_joints(self) -> tuple[int, ...]:
+        """The take's joints with no mapped joint strictly below them, ascending: the
+        unmapped ends (fingers, eyes, toes' ends) and the canonical ends (hands, head, feet
+        or toes), whose turn joint positions cannot show. On the way back from canonical
+        positions they keep their own angles; an unmapped joint with a mapped one below
+        (CMU's ``LowerBack``, a third spine joint) is aimed along the chain instead."""
+        skeleton = self.skeleton
+        mapped_below = np.zeros(skeleton.n_joints, bool)
+        mapped = self.mapped_joints()
+        for j in range(skeleton.n_joints - 1, 0, -1):  # children after parents
+            if mapped[j] or mapped_below[j]:
+                mapped_below[skeleton.parents[j]] = True
+        return tuple(int(j) for j in np.flatnonzero(~mapped_below))
+
+    def mapped_joints(self) -> np.ndarray:
+        """(J,) bool: the take's joint is some canonical joint's."""
+        out = np.zeros(self.skeleton.n_joints, bool)
+        out[[j for j in self.joints if j >= 0]] = True
+        return out
 
     def canonical_positions(self, positions: np.ndarray) -> np.ndarray:
         """(F, 21, 3) the canonical joints' positions from the take's joint positions (F, J, 3)
@@ -166,7 +186,11 @@ class HumanoidMapping:
             how = " (mapping file)" if c in self.pinned else ""
             essential = "essential" if c in ESSENTIAL_JOINTS else "optional"
             lines.append(f"{c:<{width}}  {names[j] if j >= 0 else '-'}{how}" + ("" if j >= 0 else f"  ({essential})"))
-        rest = [names[j] for j in self.unmapped_joints()]
+        kept = set(self.kept_joints())
+        aimed = [names[j] for j in self.unmapped_joints() if j not in kept]
+        rest = [names[j] for j in self.unmapped_joints() if j in kept]
+        if aimed:
+            lines.append(f"unmapped above mapped joints ({len(aimed)}, aimed along the chain): {', '.join(aimed)}")
         lines.append(f"unmapped ({len(rest)}, keep their own angles): {', '.join(rest) or 'none'}")
         lines.append(f"body size: {self.body_size_cm():.1f} cm (rest-pose hips-head chain plus mean leg)")
         return "\n".join(lines)

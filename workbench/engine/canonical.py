@@ -19,9 +19,10 @@ both ways:
   engine's IK reference gives it): the unmapped ends (fingers, eyes, toes' ends) and the
   canonical ends (hands, head, feet or toes), whose turn positions cannot show. An
   unmapped joint between two mapped ones (CMU's ``Neck``, Daz's buttocks, a third spine
-  joint) is aimed like the mapped ones, its target the mapped joint below it less their
-  offset in the reference: held at the reference's angles instead, it would make every
-  mapped joint below it miss its target.
+  joint) is aimed like the mapped ones, its target on the reference chain between the two,
+  turned and stretched about the one above so that the one below lands on its own
+  (:meth:`CanonicalBody.targets`): held at the reference's angles instead, it would make
+  every mapped joint below it miss its target.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import numpy as np
 
 from ..core.humanoid import CANONICAL_JOINTS, HumanoidMapping
 from ..core.kinematics import inverse_kinematics, joint_positions
+from ..core.rotations import vectors_to_rotation
 
 __all__ = ["CANONICAL_BODY_CM", "CanonicalBody", "facing"]
 
@@ -88,39 +90,48 @@ class CanonicalBody:
     @cached_property
     def kept_joints(self) -> np.ndarray:
         """The take's joints that keep the reference's angles: those with no mapped joint
-        strictly below them (module docstring), ascending."""
-        skeleton = self.skeleton
-        has_mapped_below = np.zeros(skeleton.n_joints, bool)
-        mapped = np.zeros(skeleton.n_joints, bool)
-        mapped[self._mapped[1]] = True
-        for j in range(skeleton.n_joints - 1, 0, -1):  # children after parents
-            if mapped[j] or has_mapped_below[j]:
-                has_mapped_below[skeleton.parents[j]] = True
-        return np.flatnonzero(~has_mapped_below)
+        strictly below them (:meth:`~workbench.core.humanoid.HumanoidMapping.kept_joints`)."""
+        return np.array(self.mapping.kept_joints(), int)
 
     def targets(self, canonical: np.ndarray, reference: np.ndarray) -> np.ndarray:
-        """IK targets (F, J, 3, file units) on the take's skeleton: the canonical positions
-        (F, 21, 3, canonical cm) of the mapped joints; each other joint at the nearest
-        mapped joint below it less their offset in the reference positions (F, J, 3), or,
-        with none below, at the nearest mapped joint above it plus their reference offset
-        (IK keeps such joints' reference angles: the target only steers their parents)."""
+        """IK targets (F, J, 3, file units) on the take's skeleton, from the canonical
+        positions (F, 21, 3, canonical cm) and the reference positions (F, J, 3):
+
+        - a mapped joint at its canonical position;
+        - an unmapped joint between the nearest mapped joints above and below it, a and d
+          (a third spine joint), where the reference chain from a to d puts it once turned
+          (the smallest turn) and stretched about a's target so that d lands on its own.
+          a then aims along the a-to-d lever: were the chain only moved so that d lands (as
+          for the next case), a would aim at its first unmapped child, one short bone away,
+          and turn by d's error over that bone (a 7-cm spine joint under a 35-cm spine);
+        - one with a mapped joint below and none above (a reference node above the hips),
+          or whose a and d coincide in the reference, at d's target less their reference
+          offset;
+        - one with none below at its parent's target plus their reference offset (IK keeps
+          such joints' reference angles: the target only steers their parents)."""
         skeleton = self.skeleton
         out = np.array(reference, float, copy=True)
         c, j = self._mapped
         out[:, j] = canonical[:, c] / self.scale
-        mapped = set(int(x) for x in j)
+        mapped = self.mapping.mapped_joints()
         below = {}  # joint -> nearest mapped descendant (shallowest, first in the tree's order)
         for k in range(skeleton.n_joints - 1, -1, -1):
             for child in skeleton.children[k]:
-                d = child if child in mapped else below.get(child)
+                d = child if mapped[child] else below.get(child)
                 if d is not None and (k not in below or _depth(skeleton, d) <= _depth(skeleton, below[k])):
                     below[k] = d
-        for k in range(skeleton.n_joints):
-            if k in mapped:
-                continue
+        above = {}  # joint -> nearest mapped ancestor
+        for k, parent in enumerate(skeleton.parents):
+            if parent >= 0:
+                above[k] = parent if mapped[parent] else above.get(parent)
+        for k in np.flatnonzero(~mapped):
             if k in below:
-                d = below[k]
+                d, a = below[k], above.get(k)
                 out[:, k] = out[:, d] - (reference[:, d] - reference[:, k])
+                if a is not None:
+                    out[:, k] = _along_chain(
+                        out[:, a], out[:, d], reference[:, a], reference[:, d], reference[:, k], out[:, k]
+                    )
             elif skeleton.parents[k] >= 0:
                 a = skeleton.parents[k]
                 out[:, k] = out[:, a] + (reference[:, k] - reference[:, a])
@@ -145,6 +156,27 @@ class CanonicalBody:
             reference_joints=kept,
             **ik,
         )
+
+
+def _along_chain(
+    top: np.ndarray,
+    bottom: np.ndarray,
+    reference_top: np.ndarray,
+    reference_bottom: np.ndarray,
+    point: np.ndarray,
+    fallback: np.ndarray,
+) -> np.ndarray:
+    """(F, 3) ``point`` (F, 3) of a reference chain from ``reference_top`` to
+    ``reference_bottom`` (F, 3 each), turned by the smallest rotation and scaled about the
+    top so that the chain runs from ``top`` to ``bottom`` (F, 3 each); ``fallback`` (F, 3)
+    in frames whose reference chain has no length."""
+    chord = reference_bottom - reference_top
+    goal = bottom - top
+    length = np.linalg.norm(chord, axis=-1)
+    has_length = length > 1e-9 * (1.0 + np.linalg.norm(reference_top, axis=-1))
+    stretch = np.linalg.norm(goal, axis=-1) / np.where(has_length, length, 1.0)
+    turned = np.einsum("fij,fj->fi", vectors_to_rotation(chord, goal), point - reference_top)
+    return np.where(has_length[:, None], top + stretch[:, None] * turned, fallback)
 
 
 def _depth(skeleton, j: int) -> int:
