@@ -141,7 +141,7 @@ class HumanoidMapping:
     def kept_joints(self) -> tuple[int, ...]:
         """The take's joints with no mapped joint strictly below them, ascending: the
         unmapped ends (fingers, eyes, toes' ends) and the canonical ends (hands, head, feet
-        or toes), whose turn joint positions cannot show. On the way back from canonical
+        or toes), whose turn positions cannot show. On the way back from canonical
         positions they keep their own angles; an unmapped joint with a mapped one below
         (CMU's ``LowerBack``, a third spine joint) is aimed along the chain instead."""
         skeleton = self.skeleton
