@@ -149,6 +149,8 @@ def test_a_reference_node_above_the_hips_is_left_out():
     skeleton = body(rows, translated_root="Hips")
     m = map_humanoid(skeleton)
     assert skeleton.names[m.joint("hips")] == "Hips" and m.unmapped_joints()[0] == 0
+    assert "above the body root (1, kept as observed): Reference" in m.describe()
+    assert "(1, aimed along the chain): Spine1\n" in m.describe() and 0 not in m.kept_joints()
 
 
 def test_sides_from_names_of_every_convention():

@@ -186,9 +186,12 @@ class HumanoidMapping:
             how = " (mapping file)" if c in self.pinned else ""
             essential = "essential" if c in ESSENTIAL_JOINTS else "optional"
             lines.append(f"{c:<{width}}  {names[j] if j >= 0 else '-'}{how}" + ("" if j >= 0 else f"  ({essential})"))
-        kept = set(self.kept_joints())
-        aimed = [names[j] for j in self.unmapped_joints() if j not in kept]
-        rest = [names[j] for j in self.unmapped_joints() if j in kept]
+        kept, carriers, unmapped = set(self.kept_joints()), set(self.skeleton.root_chain[:-1]), self.unmapped_joints()
+        carried = [names[j] for j in unmapped if j in carriers]  # reference nodes carrying the body
+        aimed = [names[j] for j in unmapped if j not in kept and j not in carriers]
+        rest = [names[j] for j in unmapped if j in kept]
+        if carried:
+            lines.append(f"above the body root ({len(carried)}, kept as observed): {', '.join(carried)}")
         if aimed:
             lines.append(f"unmapped above mapped joints ({len(aimed)}, aimed along the chain): {', '.join(aimed)}")
         lines.append(f"unmapped ({len(rest)}, keep their own angles): {', '.join(rest) or 'none'}")
