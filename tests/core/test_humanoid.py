@@ -224,8 +224,9 @@ def test_a_long_spine_bends_about_its_mapped_joint():
     """HumanIK's Spine1 and Spine2 lie between the mapped spine and chest. Poses that bend
     the spine joint alone come back from their canonical positions as that bend, the
     unmapped joints at the reference's angles: their targets follow the reference chain
-    turned about the spine (moved with the chest instead, they would aim the spine at
-    Spine1, one 12-cm bone away, and bend the chain there)."""
+    turned about the spine (moved with the chest instead, they aim the spine at Spine1,
+    one 12-cm bone away, and zigzag the chain: Spine bent 44.6 degrees for a lean of 16.7,
+    Spine1 36.8 back)."""
     from workbench.core.kinematics import forward_kinematics
     from workbench.core.rotations import euler_to_matrix, matrix_to_euler, vectors_to_rotation
     from workbench.engine.canonical import CanonicalBody
