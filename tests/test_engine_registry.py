@@ -105,7 +105,8 @@ def test_weights_bring_their_architecture_unless_the_spec_asks_for_another():
         registry.create(f"cae:base_width=8,weights={cae}")
     narrow = registry.create("cae:base_width=8")  # another variant: its own weights, none committed
     assert narrow.variant == "cae-base_width8" and narrow.skeleton_signature_ is None  # was: the 16-wide, silently
-    assert registry.create("cae:epochs=3").spec == "cae"  # training settings come with the weights
+    trained = registry.create("cae:epochs=3").spec  # training settings come with the weights
+    assert trained == registry.create("cae").spec and "epochs=3" not in trained
 
 
 def test_import_path_specs():
