@@ -104,7 +104,9 @@ class TrainingParams:
     of this standard deviation (normalised units) on the known input entries.
     ``sampling`` ("clips" or "frames") and ``input_fill`` ("linear" or "zero"): see
     :class:`.training.WindowSampler` (pooled skeletons, as a universal variant trains on,
-    are drawn equally often each). ``ema_decay``: the weights kept are the exponential moving average
+    are drawn equally often each). ``learning_rate`` is held for the first
+    ``anneal_from_pct`` per cent of the epochs, then annealed (cosine) to a tenth.
+    ``ema_decay``: the weights kept are the exponential moving average
     over the steps with this decay per step (0: the last step's). ``bf16``: bf16 autocast
     (training and inference).
     ``keep_observed``: return observed samples exactly; ``anchor``: anchor the output
@@ -132,6 +134,7 @@ class TrainingParams:
     window_frames: int = training(256)
     batch_size: int = training(16)
     learning_rate: float = training(1e-3)
+    anneal_from_pct: float = training(75.0)
     ema_decay: float = training(0.998)
     curriculum_epochs: int = training(8)
     gap_sigma_frames: float = training(20.0)
@@ -166,6 +169,8 @@ class TrainingParams:
         for name in ("short_hole_frames", "partial_hole_frames", "hole_blend_frames"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be 0 (off) or a number of frames, got {getattr(self, name)}")
+        if not 0 <= self.anneal_from_pct <= 100:
+            raise ValueError(f"anneal_from_pct must be 0 to 100 (per cent of the epochs), got {self.anneal_from_pct}")
         for name in ("short_lever_cm", "angle_lever_cm"):
             if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ValueError(f"{name} must be 0 (off) or a positive length in cm, got {getattr(self, name)}")
@@ -274,6 +279,7 @@ class ConvAutoencoderEngine(Engine):
             batches,
             p.batch_size,
             p.learning_rate,
+            p.anneal_from_pct,
             p.curriculum_epochs,
             p.ema_decay,
             desc=f"train {self.info.name}",

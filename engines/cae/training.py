@@ -32,7 +32,7 @@ gap; rows never known enter as 0, the training mean) or all as 0 (``"zero"``, th
 known-mask is the second input channel.
 
 The loss is the L1 distance over the whole window (all rows, all frames), as in the paper. Adam at
-``learning_rate`` is held for the first three quarters of the epochs, then annealed (cosine) to a
+``learning_rate`` is held for the first ``anneal_from_pct`` per cent of the epochs (75), then annealed (cosine) to a
 tenth. The weights kept are the exponential moving average of the steps' weights (``ema_decay``
 per step; ours: it damps the last steps' noise).
 
@@ -63,6 +63,16 @@ PARTIAL_PROBABILITY = 0.3
 def gap_mean_frames(epoch: int, curriculum_epochs: int) -> int:
     """mu_e, the mean block length at ``epoch`` (0-based) of the curriculum."""
     return min(GAP_START_FRAMES + GAP_STEP_FRAMES * (epoch // max(curriculum_epochs, 1)), GAP_MAX_FRAMES)
+
+
+def learning_rate_at(epoch: int, epochs: int, learning_rate: float, anneal_from_pct: float) -> float:
+    """The learning rate of ``epoch`` (0-based) of ``epochs``: ``learning_rate`` for the
+    first ``anneal_from_pct`` per cent of them, then annealed (cosine) to a tenth of it."""
+    anneal_from = int(anneal_from_pct / 100 * epochs)
+    if epoch < anneal_from:
+        return learning_rate
+    frac = (epoch - anneal_from) / max(epochs - anneal_from, 1)
+    return learning_rate * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * frac)))
 
 
 class WindowSampler:
@@ -172,28 +182,27 @@ def train(
     batches_per_epoch: int,
     batch_size: int,
     learning_rate: float,
+    anneal_from_pct: float,
     curriculum_epochs: int,
     ema_decay: float,
     desc: str,
 ) -> list[float]:
     """Train ``net`` in place; returns the mean L1 loss of every epoch. With ``ema_decay``
     > 0, ``net`` ends with the exponential moving average of its weights over the steps
-    (this decay per step) instead of the last step's weights."""
+    (this decay per step) instead of the last step's weights; the learning rate of each
+    epoch is :func:`learning_rate_at`'s."""
     opt = torch.optim.Adam(net.parameters(), lr=learning_rate, fused=True)
     ema = None
     if ema_decay > 0:
         from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
         ema = AveragedModel(net, multi_avg_fn=get_ema_multi_avg_fn(ema_decay))
-    anneal_from = int(0.75 * epochs)
     net.train()
     log: list[float] = []
     bar = progress(range(epochs), desc=desc)
     for epoch in bar:
-        if epoch >= anneal_from:
-            frac = (epoch - anneal_from) / max(epochs - anneal_from, 1)
-            for g in opt.param_groups:
-                g["lr"] = learning_rate * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * frac)))
+        for g in opt.param_groups:
+            g["lr"] = learning_rate_at(epoch, epochs, learning_rate, anneal_from_pct)
         gap = gap_mean_frames(epoch, curriculum_epochs)
         total = 0.0
         for _ in range(batches_per_epoch):

@@ -425,12 +425,26 @@ def test_ema_keeps_the_average_of_the_steps_weights():
     def trained(steps, decay):
         net = VanillaNet(bf16=False)
         net.load_state_dict(start)
-        train(net, Sampler(), 1, steps, 2, 1e-2, 1, decay, desc="test")
+        train(net, Sampler(), 1, steps, 2, 1e-2, 75.0, 1, decay, desc="test")
         return net.state_dict()
 
     first, last, averaged = trained(1, 0.0), trained(6, 0.0), trained(6, 1.0 - 1e-9)
     assert max((last[k] - first[k]).abs().max().item() for k in start) > 1e-2
     assert max((averaged[k] - first[k]).abs().max().item() for k in start) < 1e-6
+
+
+def test_learning_rate_is_held_then_annealed_to_a_tenth():
+    """Held for the first anneal_from_pct per cent of the epochs, then falling (cosine)
+    towards a tenth; a percentage outside 0-100 is refused."""
+    from engines.cae.training import learning_rate_at
+
+    rates = [learning_rate_at(e, 10, 1e-3, 40.0) for e in range(10)]
+    assert rates[:5] == [1e-3] * 5  # the first annealed epoch starts from the full rate
+    assert all(a > b for a, b in zip(rates[4:], rates[5:]))
+    assert 1e-4 < rates[-1] < 2e-4
+    assert [learning_rate_at(e, 8, 1e-3, 75.0) for e in range(8)][:6] == [1e-3] * 6
+    with pytest.raises(ValueError, match="anneal_from_pct"):
+        CAE.Params(anneal_from_pct=120)
 
 
 def test_short_levers_keep_their_observed_angles(test_clip):
