@@ -32,8 +32,8 @@ gap; rows never known enter as 0, the training mean) or all as 0 (``"zero"``, th
 known-mask is the second input channel.
 
 The loss is the L1 distance over the whole window (all rows, all frames), as in the paper. Adam at
-``learning_rate`` is held for the first ``anneal_from_pct`` per cent of the epochs (75), then annealed (cosine) to a
-tenth. The weights kept are the exponential moving average of the steps' weights (``ema_decay``
+the rate :func:`learning_rate_at` gives each epoch: held, then annealed (cosine) to a tenth.
+The weights kept are the exponential moving average of the steps' weights (``ema_decay``
 per step; ours: it damps the last steps' noise).
 
 History and results: docs/engines/cae.md.
