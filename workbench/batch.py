@@ -138,7 +138,7 @@ def clean_file(
         observation.n_frames,
         seconds,
         int((~observation.observed).sum()),
-        engine.spec,
+        engine.spec_used_ or engine.spec,
         engine.weights_used_,
         tuple(notes),
     )

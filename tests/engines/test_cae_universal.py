@@ -136,9 +136,11 @@ def test_the_plain_cae_cleans_a_skeleton_without_weights_on_the_committed_univer
     assert np.isfinite(result.motion.channels).all()
     assert engine.weights_used_.startswith("universal weights ") and "cae-universal" in engine.weights_used_
     universal = registry.create("cae:universal=true")
+    assert engine.spec_used_ == universal.spec and "universal=True" in engine.spec_used_  # the weights' parameters
     np.testing.assert_array_equal(universal.clean(obs).motion.channels, result.motion.channels)
     engine.clean(Observation(walk.slice(0, 120)))
     assert engine.weights_used_.startswith("skeleton-specific weights ") and engine.weights_used_.endswith("cmu")
+    assert engine.spec_used_ == engine.spec == "cae"
     for name in ("holden", "cae-vanilla"):
         other = registry.create(name)
         other.clean(obs)

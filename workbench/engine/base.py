@@ -282,6 +282,10 @@ class Engine:
     #: weights FOLDER" or "universal weights FOLDER" (a universal variant's, also where a plain
     #: engine's skeleton has none of its own: :meth:`universal_twin`); None: fitted here
     weights_used_: str | None = None
+    #: the spec of the engine that ran the last clean, for its output line: this one's, or
+    #: its universal twin's, whose training parameters are the universal weights'; None
+    #: where no clean picked weights (then :attr:`spec` says it)
+    spec_used_: str | None = None
     #: canonical joints pinned by the user (``--mapping``) for a skeleton-agnostic engine
     humanoid_overrides: Mapping[str, str | None] | None = None
     #: the universal variant that cleans skeletons with no weights of their own (:meth:`universal_twin`)
@@ -536,6 +540,7 @@ class Engine:
         self.require_fitted()
         self.check_skeleton(body)
         self.weights_used_ = self.weights_description()
+        self.spec_used_ = self.spec
         return ModelView.of(observation, self.fps_, turn)
 
     def weights_description(self) -> str | None:
@@ -907,7 +912,7 @@ class Engine:
 
     def universal_clean(self, observation: Observation, /, **options) -> CleanResult | None:
         """The :meth:`universal_twin`'s clean of ``observation`` (``options``: the keyword
-        arguments of ``clean``), with :attr:`weights_used_` set to its weights; None where
+        arguments of ``clean``), with :attr:`weights_used_` and :attr:`spec_used_` set to its own; None where
         this engine has weights of its own for the take's skeleton (or no twin), so that
         a trained engine's ``clean`` starts with it."""
         from ..core.upright import up_turn
@@ -919,7 +924,7 @@ class Engine:
         if twin is None:
             return None
         result = twin.clean(observation, **options)
-        self.weights_used_ = twin.weights_used_
+        self.weights_used_, self.spec_used_ = twin.weights_used_, twin.spec_used_
         return result
 
     def universal_twin(self, skeleton: Skeleton) -> "Engine | None":
@@ -1042,7 +1047,8 @@ class Pipeline(Engine):
         -------
         CleanResult
             The last stage's motion; the diagnostics of every stage, those of the earlier
-            ones named ``<stage name>.<name>``. :attr:`weights_used_` lists the stages'.
+            ones named ``<stage name>.<name>``. :attr:`weights_used_` lists the stages',
+            :attr:`spec_used_` joins theirs.
 
         Raises
         ------
@@ -1062,4 +1068,5 @@ class Pipeline(Engine):
         used = [(s.info.name, *s.weights_used_.split(" weights ", 1)) for s in self.stages if s.weights_used_]
         kind = "universal" if any(k == "universal" for _, k, _ in used) else "skeleton-specific"
         self.weights_used_ = f"{kind} weights " + ", ".join(f"{n} {folder}" for n, _, folder in used) if used else None
+        self.spec_used_ = ">".join(s.spec_used_ or s.spec for s in self.stages)
         return CleanResult(result.motion, diagnostics)
