@@ -36,6 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.core.channels import interpolate_frames
 from workbench.core.skeleton import Skeleton
 
 #: rows before the joints (root height) and after them (vx, vz, turning rate)
@@ -232,6 +233,15 @@ def reverse_time(image: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.nd
     m[0, -TAIL_ROWS:] = m[0, 0]
     m[1:, -TAIL_ROWS:] = mask[:0:-1, -TAIL_ROWS:]
     return out, m
+
+
+def retime(image: np.ndarray, times: np.ndarray, speed: float) -> np.ndarray:
+    """The image (F, H) at fractional frame times ``times`` (n,), within [0, F - 1]:
+    linear interpolation, the velocity and turning-rate rows times ``speed`` (the image's
+    frames per new frame), as a take played at another rate encodes."""
+    out = interpolate_frames(image, times)
+    out[:, -TAIL_ROWS:] *= speed
+    return out
 
 
 def pad_time(image: np.ndarray, mask: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray]:

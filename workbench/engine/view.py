@@ -183,7 +183,7 @@ def _unwrapped(motion: Motion) -> np.ndarray:
     return X
 
 
-def _frame_times(n_from: int, fps_from: float, fps_to: float) -> np.ndarray:
+def frame_times(n_from: int, fps_from: float, fps_to: float) -> np.ndarray:
     """Times of the frames of a take resampled from ``fps_from`` to ``fps_to``, in frames
     of the original: every ``fps_from / fps_to`` frames from its first, and one at its
     last frame where that step does not land on it (so the end is kept)."""
@@ -200,7 +200,7 @@ def resample(motion: Motion, fps: float) -> Motion:
         return motion
     if motion.n_frames < 2:
         return motion.replace(fps=fps)
-    t = _frame_times(motion.n_frames, motion.fps, fps)
+    t = frame_times(motion.n_frames, motion.fps, fps)
     return motion.replace(fps=fps).with_channels(interpolate_frames(_unwrapped(motion), t))
 
 
@@ -249,7 +249,7 @@ class ModelView:
         if turn is not None:
             view = turn_motion(view, turn)
         if interpolated:
-            t = _frame_times(source.n_frames, source.motion.fps, fps)
+            t = frame_times(source.n_frames, source.motion.fps, fps)
             observed = _resample_frames(observed.astype(float), t) > 1 - 1e-9  # both frames around observed
         view = resample(view, fps)  # without interpolation, at most a new rate for one frame
         return cls(source, Observation(view, observed, step), bridged, turn)
@@ -292,7 +292,7 @@ class ModelView:
         motion, t = result.motion.replace(fps=fps_take), None  # t: the take's frames in view frames
         if view.n_frames != source.n_frames:  # else the same frames: no resampling, no roundoff
             t = np.interp(
-                np.arange(source.n_frames), _frame_times(source.n_frames, fps_take, fps_view), np.arange(view.n_frames)
+                np.arange(source.n_frames), frame_times(source.n_frames, fps_take, fps_view), np.arange(view.n_frames)
             )
             motion = motion.with_channels(_resample_frames(_unwrapped(result.motion), t))
         if self.turn is not None:
