@@ -363,7 +363,7 @@ class ConvAutoencoderEngine(Engine):
         n_frames, speed = image.shape[0], self.fps_ / self.network_fps_  # frames of the image per network frame
         times = frame_times(n_frames, self.fps_, self.network_fps_) if n_frames >= 2 and speed != 1.0 else None
         if times is not None:
-            image, mask = retime(image, times, speed), interpolate_frames(mask.astype(float), times) > 1 - 1e-9
+            image, mask = retime(image, times), interpolate_frames(mask.astype(float), times) > 1 - 1e-9
         F, H = image.shape
         perm, sign = mirror if mirror is not None else (None, None)
         chosen = VIEWS[:views]
@@ -387,7 +387,7 @@ class ConvAutoencoderEngine(Engine):
             total += y[:, perm] * sign if mirrored else y
         total /= len(chosen)
         if times is not None:
-            total = retime(total, np.interp(np.arange(n_frames), times, np.arange(F)), 1.0 / speed)
+            total = retime(total, np.interp(np.arange(n_frames), times, np.arange(F)))
         return total
 
     @one_blas_thread

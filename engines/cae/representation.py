@@ -235,12 +235,18 @@ def reverse_time(image: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.nd
     return out, m
 
 
-def retime(image: np.ndarray, times: np.ndarray, speed: float) -> np.ndarray:
-    """The image (F, H) at fractional frame times ``times`` (n,), within [0, F - 1]:
-    linear interpolation, the velocity and turning-rate rows times ``speed`` (the image's
-    frames per new frame), as a take played at another rate encodes."""
+def retime(image: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """The image (F, H) at increasing fractional frame times ``times`` (n,), within
+    [0, F - 1], as a take played at that rate encodes: the rows linearly interpolated, but
+    the velocity and turning-rate rows the steps of their running sums so interpolated
+    (the root's path between two new frames is the image's between those times, each
+    frame's step in its own heading: exact for the turns, to first order in a frame's turn
+    for the floor steps); the first new frame's step the image's there times the first
+    time step."""
     out = interpolate_frames(image, times)
-    out[:, -TAIL_ROWS:] *= speed
+    path = interpolate_frames(np.cumsum(image[:, -TAIL_ROWS:], axis=0), times)
+    out[0, -TAIL_ROWS:] *= times[1] - times[0] if len(times) > 1 else 1.0
+    out[1:, -TAIL_ROWS:] = np.diff(path, axis=0)
     return out
 
 

@@ -17,6 +17,7 @@ from engines.cae.representation import (
     integrate,
     mirror_rows,
     pad_time,
+    retime,
     reverse_time,
 )
 from workbench import metrics, registry
@@ -574,6 +575,41 @@ def test_time_reversal_is_the_image_of_the_take_played_backwards(walk):
     again, again_mask = reverse_time(back, back_mask)
     np.testing.assert_allclose(again, image, atol=1e-12)
     np.testing.assert_array_equal(again_mask, mask)
+
+
+def test_an_image_retimed_is_the_image_of_the_take_at_that_rate(walk):
+    """Every other frame of a 120-fps image, its steps summed in pairs, is the image of the
+    take at 60 fps (the floor steps to a frame's turn); and back, the positions again and
+    the path at every other frame."""
+    layout = Layout.from_skeleton(walk.skeleton)
+    P, R = forward_kinematics(walk.skeleton, walk.root_positions, walk.angles_deg)
+    theta = heading(R[:, 0])
+    image = encode(layout, P, theta)
+    half = retime(image, np.arange(0, walk.n_frames, 2.0))
+    at_60 = encode(layout, P[::2], theta[::2])
+    np.testing.assert_allclose(half[:, :-1], at_60[:, :-1], atol=0.02 * np.abs(at_60[:, -3:-1]).max())
+    np.testing.assert_allclose(half[:, -1], at_60[:, -1], atol=1e-12)
+    back = retime(half, np.arange(walk.n_frames - 1) / 2.0)
+    np.testing.assert_allclose(back[::2, :-3], image[: walk.n_frames - 1 : 2, :-3], atol=1e-12)
+    np.testing.assert_allclose(np.cumsum(back[:, -3:], axis=0)[::2], np.cumsum(image[:-1, -3:], axis=0)[::2], atol=1e-9)
+
+
+def test_the_network_sees_the_take_at_its_own_rate(tiny_fit, trained, tmp_path, monkeypatch):
+    """Weights trained now run their network at 60 fps on a 120-fps view and say so in
+    their arrays; weights saved before that run it at the model's rate."""
+    engine, motions = tiny_fit
+    assert (engine.fps_, engine.network_fps_) == (120.0, CAE.NETWORK_FPS) == (120.0, 60.0)
+    assert trained["cae"].network_fps_ == trained["cae"].fps_ == 120.0
+    engine.save(tmp_path)
+    again = CAE().load(tmp_path)
+    assert again.network_fps_ == 60.0
+    seen = []
+    predict = again.net_.predict
+    monkeypatch.setattr(again.net_, "predict", lambda x, *a: seen.append(x.shape) or predict(x, *a))
+    obs = parse_corruption("block:30").apply(motions[0].slice(0, 161), seed=0)
+    out = again.clean(obs)
+    assert seen and seen[0][-1] == 96  # 81 frames at 60 fps, padded to a multiple of 32
+    assert out.motion.n_frames == 161 and np.isfinite(out.motion.channels).all()
 
 
 def test_eval_forward_casts_the_weights_once_and_follows_new_ones(monkeypatch):
