@@ -10,10 +10,12 @@ network completes the image of a take and IK turns it back into angles (the pape
    ``partial_hole_frames`` where the root is observed, if :func:`workbench.engine.smoothing.angles_bridge_holes`
    finds the noise allows (ours: the network was trained on whole frames and whole joints missing).
    Both are bridged along the path of :func:`workbench.engine.smoothing.smooth_and_fill`.
-2. The image, reflected to a multiple of 32 frames, normalised, holes bridged or zeroed
-   (``input_fill``), the mask as a second channel, is completed in one pass. With ``views`` > 1
-   (ours) its mirror, its reversal (:func:`.representation.reverse_time`) and both are completed in
-   the same batch, mapped back and averaged: the network learnt these symmetries only approximately.
+2. The image, resampled to the network's rate (60 fps for weights trained now; ours: the paper's
+   rate, with every other stage at the view's 120 fps), reflected to a multiple of 32 frames,
+   normalised, holes bridged or zeroed (``input_fill``), the mask as a second channel, is
+   completed in one pass and resampled back. With ``views`` > 1 (ours) its mirror, its reversal
+   (:func:`.representation.reverse_time`) and both are completed in the same batch, mapped back
+   and averaged: the network learnt these symmetries only approximately.
    A Gaussian over time of std ``output_sigma_frames`` (ours) removes the upsampling layers' ripple.
 3. The root's floor track is the observed one, the predicted velocities integrated across its gaps;
    ``raw_positions`` (F, J, 3) is the network's output on it. With ``anchor`` the observed track is
@@ -93,15 +95,17 @@ SMOOTHER_PATH_SHARE = 0.75
 
 @dataclass(frozen=True)
 class TrainingParams:
-    """Training and use, shared by the three engines. An epoch is ``frames_per_epoch``
-    frames in windows of ``window_frames`` frames (a multiple of 32); the curriculum
-    raises the mean gap by 10 frames every ``curriculum_epochs`` epochs (10 to 120, then
-    held). Augmentation (:class:`.training.WindowSampler`): ``time_scale_pct``, each
-    window played at a speed drawn log-uniformly in [1 / (1 + p/100), 1 + p/100];
-    ``body_scale_pct``, each window's body and motion scaled uniformly by a factor in
-    1 +- p/100; ``pose_copies``, each clip also trained on this many times with every
-    upper-body joint angle (joints above the root at rest) that varies in the training
-    data offset by a constant drawn from N(0, ``pose_jitter_deg``^2) degrees per copy;
+    """Training and use, shared by the three engines. Frames of the network's are at
+    :attr:`ConvAutoencoderEngine.network_fps_` (60 fps for weights trained now). An epoch
+    is ``frames_per_epoch`` frames in windows of ``window_frames`` network frames (a
+    multiple of 32); the curriculum raises the mean gap by 10 network frames every
+    ``curriculum_epochs`` epochs (10 to 120, then held). Augmentation
+    (:class:`.training.WindowSampler`): ``time_scale_pct``, each window played at a
+    speed drawn log-uniformly in [1 / (1 + p/100), 1 + p/100]; ``body_scale_pct``, each
+    window's body and motion scaled uniformly by a factor in 1 +- p/100; ``pose_copies``,
+    each clip also trained on this many times with every upper-body joint angle (joints
+    above the root at rest) that varies in the training data offset by a constant drawn
+    from N(0, ``pose_jitter_deg``^2) degrees per copy;
     ``mirror``, half the windows mirrored left/right; ``input_noise``, Gaussian noise
     of this standard deviation (normalised units) on the known input entries.
     ``sampling`` ("clips" or "frames") and ``input_fill`` ("linear" or "zero"): see
@@ -125,7 +129,7 @@ class TrainingParams:
     inside a hole shorter than this the network's fill is blended with the
     constant-velocity smoother's (0: none; all three: the module docstring);
     ``output_sigma_frames``: the network's completion is smoothed over time by a
-    Gaussian of this std in frames before it is used (0: none; the module docstring).
+    Gaussian of this std in network frames before it is used (0: none; the module docstring).
     ``universal``: the image holds the canonical humanoid instead of the take's joints
     (:mod:`.bodies`), so the weights train on several skeletons together and clean any
     that maps onto it; a plain engine with no weights for a take's skeleton cleans it
@@ -360,9 +364,9 @@ class ConvAutoencoderEngine(Engine):
 
         if views > 1 and mirror is None:
             raise ValueError("the mirrored views need the mirror's rows and signs (mirror_rows)")
-        n_frames, speed = image.shape[0], self.fps_ / self.network_fps_  # frames of the image per network frame
-        times = frame_times(n_frames, self.fps_, self.network_fps_) if n_frames >= 2 and speed != 1.0 else None
-        if times is not None:
+        n_frames, times = image.shape[0], None  # times: the network's frames in the image's
+        if n_frames >= 2 and self.network_fps_ != self.fps_:
+            times = frame_times(n_frames, self.fps_, self.network_fps_)
             image, mask = retime(image, times), interpolate_frames(mask.astype(float), times) > 1 - 1e-9
         F, H = image.shape
         perm, sign = mirror if mirror is not None else (None, None)
