@@ -317,7 +317,8 @@ def test_chest_and_arms_keep_their_smoothed_angles_where_the_noise_is_in_the_ang
     at most) and forearms (22 cm) keep their observed angles, smoothed, within the
     30-cm angle lever: aimed at the network's joints they were turned by its errors, the
     chest further than the noise itself had turned it. Beyond a 13.5-cm lever the
-    forearms weigh their angles against that aim, and come out 20 % further off."""
+    forearms weigh their angles against that aim, and come out further off (7 % with the
+    Bandai weights of a 60-fps network, 20 % with those before)."""
     sk = studio_take.skeleton
 
     def error(m, names):
@@ -327,8 +328,8 @@ def test_chest_and_arms_keep_their_smoothed_angles_where_the_noise_is_in_the_ang
     noisy = parse_corruption("angular:0.5").apply(studio_take, seed=0)
     kept, aimed = (registry.create(s).clean(noisy).motion for s in ("cae", "cae:angle_lever_cm=13.5"))
     chest, arms = ["Chest"], ["LowerArm_L", "LowerArm_R"]
-    assert error(kept, chest) < 0.6 * min(error(aimed, chest), error(noisy.motion, chest))  # 0.98, 2.83, 2.20
-    assert error(kept, arms) < 0.9 * error(aimed, arms) < 0.5 * error(noisy.motion, arms)  # 1.50, 1.80, 3.47
+    assert error(kept, chest) < 0.6 * min(error(aimed, chest), error(noisy.motion, chest))  # 0.98, 3.89, 2.20
+    assert error(kept, arms) < 0.95 * error(aimed, arms) < 0.5 * error(noisy.motion, arms)  # 1.50, 1.61, 3.47
     assert metrics.rms_angle_deg(studio_take, kept) < metrics.rms_angle_deg(studio_take, aimed)
 
 
