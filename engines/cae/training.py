@@ -1,12 +1,11 @@
 """Training shared by ``cae``, ``cae-vanilla`` and ``holden`` (Kaufmann et al. 2020, §3.3).
 
-The training takes are imaged at the network's rate (:attr:`.engine.ConvAutoencoderEngine.NETWORK_FPS`),
-so every length below is in its frames. Each step draws a batch of windows (``window_frames``
-frames) of training images, each window from a clip drawn uniformly (``sampling="clips"``, the
-default; ours: a few long takes hold much of our training frames) or with probability
-proportional to its length (``"frames"``), at a random start
-(clips too short are reflected at their end, as at inference), augmented and normalised
-(:meth:`WindowSampler.windows`).
+Lengths are in frames at the network's rate (:attr:`.engine.ConvAutoencoderEngine.NETWORK_FPS`).
+Each step draws a batch of windows (``window_frames`` frames) of training images, each window
+from a clip drawn uniformly (``sampling="clips"``, the default; ours: a few long takes hold much
+of our training frames) or with probability proportional to its length (``"frames"``), at a
+random start (clips too short are reflected at their end, as at inference), augmented and
+normalised (:meth:`WindowSampler.windows`).
 
 Every window gets one of two holes, at random with equal chance (the paper's two):
 
