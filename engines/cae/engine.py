@@ -47,7 +47,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.core.channels import hole_length, interpolate_frames, interpolate_gaps
+from workbench.core.channels import hole_length, interpolate_gaps, known_at
 from workbench.core.kinematics import forward_kinematics, joint_positions, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, channel_matrix, position_unknown
 from workbench.core.skeleton import Skeleton
@@ -365,7 +365,7 @@ class ConvAutoencoderEngine(Engine):
         n_frames, times = image.shape[0], None  # times: the network's frames in the image's
         if n_frames >= 2 and self.network_fps_ != self.fps_:
             times = frame_times(n_frames, self.fps_, self.network_fps_)
-            image, mask = retime(image, times), interpolate_frames(mask.astype(float), times) > 1 - 1e-9
+            image, mask = retime(image, times), known_at(mask, times)
         F, H = image.shape
         perm, sign = mirror if mirror is not None else (None, None)
         chosen = VIEWS[:views]

@@ -199,6 +199,13 @@ def interpolate_frames(X: np.ndarray, t: np.ndarray) -> np.ndarray:
     return X[i] * (1 - w) + X[i + 1] * w
 
 
+def known_at(known: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Which entries of a mask (F, ...) hold at fractional frame times ``t`` (n,), within
+    [0, F - 1]: where both frames around a time are known (at a whole time, that frame).
+    Needs F >= 2."""
+    return interpolate_frames(known.astype(float), t) > 1 - 1e-9
+
+
 def retime(X: np.ndarray, speed: float) -> np.ndarray:
     """Samples (F, ...) played ``speed`` times as fast: linear interpolation in time at
     frames 0, speed, 2 speed, ... up to F - 1, giving (floor((F - 1) / speed) + 1, ...).

@@ -39,7 +39,7 @@ from typing import Mapping
 
 import numpy as np
 
-from ..core.channels import interpolate_frames, unwrap_deg
+from ..core.channels import interpolate_frames, known_at, unwrap_deg
 from ..core.motion import Motion, Observation, angle_slice, body_position_column, channel_count
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
@@ -250,7 +250,7 @@ class ModelView:
             view = turn_motion(view, turn)
         if interpolated:
             t = frame_times(source.n_frames, source.motion.fps, fps)
-            observed = _resample_frames(observed.astype(float), t) > 1 - 1e-9  # both frames around observed
+            observed = known_at(observed, t)
         view = resample(view, fps)  # without interpolation, at most a new rate for one frame
         return cls(source, Observation(view, observed, step), bridged, turn)
 
