@@ -341,7 +341,13 @@ class ConvAutoencoderEngine(Engine):
         self.std_ = arrays["image.std"].astype(float)
         self.constant_ = arrays["constant_joints"].astype(int)
         self.loss_log_ = arrays["training.loss_per_epoch"].astype(float)
-        self.network_fps_ = float(arrays["network.fps"] if "network.fps" in arrays else manifest["fps"])
+        rate = np.asarray(arrays.get("network.fps", manifest["fps"]), float)
+        if rate.shape != () or not (np.isfinite(rate) and rate > 0):
+            raise EngineError(
+                f"engine {self.info.name!r}: the weights' network.fps ({rate}) is not a frame rate; "
+                "retrain them (`workbench train SPEC --out FOLDER`)"
+            )
+        self.network_fps_ = float(rate)
 
     # -- cleaning -------------------------------------------------------------------
     def complete(

@@ -595,12 +595,14 @@ def test_an_image_retimed_is_the_image_of_the_take_at_that_rate(walk):
     np.testing.assert_allclose(np.cumsum(back[:, -3:], axis=0)[::2], np.cumsum(image[:-1, -3:], axis=0)[::2], atol=1e-9)
 
 
-def test_the_network_sees_the_take_at_its_own_rate(tiny_fit, trained, tmp_path, monkeypatch):
+def test_the_network_sees_the_take_at_its_own_rate(tiny_fit, tmp_path, monkeypatch):
     """Weights trained now run their network at 60 fps on a 120-fps view and say so in
-    their arrays; weights saved before that run it at the model's rate."""
+    their arrays; weights saved before that (CMU's committed ones) run it at the model's
+    rate; a rate that is none is refused."""
     engine, motions = tiny_fit
     assert (engine.fps_, engine.network_fps_) == (120.0, CAE.NETWORK_FPS) == (120.0, 60.0)
-    assert trained["cae"].network_fps_ == trained["cae"].fps_ == 120.0
+    before = CAE().load(CAE().default_weights_dir() / "cmu")
+    assert before.network_fps_ == before.fps_ == 120.0
     engine.save(tmp_path)
     again = CAE().load(tmp_path)
     assert again.network_fps_ == 60.0
@@ -611,6 +613,10 @@ def test_the_network_sees_the_take_at_its_own_rate(tiny_fit, trained, tmp_path, 
     out = again.clean(obs)
     assert seen and seen[0][-1] == 96  # 81 frames at 60 fps, padded to a multiple of 32
     assert out.motion.n_frames == 161 and np.isfinite(out.motion.channels).all()
+    again.network_fps_ = 0.0
+    again.save(tmp_path / "broken")
+    with pytest.raises(EngineError, match="network.fps .* is not a frame rate; retrain"):
+        CAE().load(tmp_path / "broken")
 
 
 def test_eval_forward_casts_the_weights_once_and_follows_new_ones(monkeypatch):
