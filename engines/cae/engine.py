@@ -430,14 +430,17 @@ class ConvAutoencoderEngine(Engine):
         layout = self.layout_
         imaging = self.imaging(skeleton, layout)
         linear = bridge_gaps(observation)
-        holes = self.bridged_holes(observation, linear)
+        P = joint_positions(skeleton, linear[:, :3], linear[:, 3:].reshape(observation.n_frames, -1, 3))
+        holes = self.bridged_holes(observation, linear, P)
         seen, bridge = observation.channel_observed, channel_mask(holes, skeleton)
         # smoothed once: the holes' bridges and (with anchor) the IK reference
         smoothed = smooth_and_fill(linear, seen, step=step) if self.params.anchor or holes.any() else None
         bridged = np.where(bridge, smoothed, linear) if holes.any() else linear
         del linear
         ref = bridged[:, 3:].reshape(observation.n_frames, -1, 3)
-        P = joint_positions(skeleton, bridged[:, :3], ref)
+        if holes.any():  # FK is frame by frame: only the bridged frames move
+            moved = np.flatnonzero(bridge.any(axis=1))
+            P[moved] = joint_positions(skeleton, bridged[moved, :3], ref[moved])
         image_positions = imaging.positions(P)
         theta = imaging.heading(image_positions, local_rotations(skeleton, ref, [0])[:, 0])
         ik_angles, ik_options = self._ik_reference(observation, bridged, smoothed, P, ref)
@@ -483,12 +486,13 @@ class ConvAutoencoderEngine(Engine):
             channels[given] = observation.motion.channels[given]
         return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw_positions})
 
-    def bridged_holes(self, observation: Observation, channels: np.ndarray) -> np.ndarray:
+    def bridged_holes(self, observation: Observation, channels: np.ndarray, positions: np.ndarray) -> np.ndarray:
         """The holes (F, J) that count as observed, bridged by the constant-velocity
         smoother of their angles: those of at most ``short_hole_frames``, and those of at
         most ``partial_hole_frames`` in frames where the root is observed, in takes whose
         noise lets the angles bridge them (:func:`workbench.engine.smoothing.angles_bridge_holes`).
-        ``channels`` (F, 3 + 3J): the observation's, gaps bridged (:func:`bridge_gaps`)."""
+        ``channels`` (F, 3 + 3J): the observation's, gaps bridged (:func:`bridge_gaps`);
+        ``positions`` (F, J, 3): their joint positions (file units)."""
         p = self.params
         missing = ~observation.observed
         length = hole_length(missing)
@@ -496,7 +500,6 @@ class ConvAutoencoderEngine(Engine):
         partial = missing & (length <= p.partial_hole_frames) & observation.observed[:, :1] & ~holes
         if partial.any():
             skeleton, step = observation.skeleton, observation.capture_step
-            positions = joint_positions(skeleton, channels[:, :3], channels[:, 3:].reshape(observation.n_frames, -1, 3))
             if angles_bridge_holes(skeleton, channels, observation.observed, positions, p.short_lever_cm, step):
                 holes |= partial
         return holes

@@ -22,7 +22,7 @@ from engines.cae.representation import (
 )
 from workbench import metrics, registry
 from workbench.core.channels import hole_length
-from workbench.core.kinematics import forward_kinematics
+from workbench.core.kinematics import forward_kinematics, joint_positions
 from workbench.core.motion import Observation, joint_angle_columns, position_unknown
 from workbench.core.rotations import wrap_deg
 from workbench.corruption import parse_corruption
@@ -491,6 +491,12 @@ def test_short_holes_are_bridged_as_observed(test_clip):
     assert _gap_error("cae:short_hole_frames=0,partial_hole_frames=0", truth, obs) > 2.0 * lerp  # 2.41
 
 
+def _bridged_with_positions(obs):
+    """``bridged_holes``' arguments: the observation's channels, gaps bridged, and their joint positions."""
+    channels = bridge_gaps(obs)
+    return channels, joint_positions(obs.skeleton, channels[:, :3], channels[:, 3:].reshape(obs.n_frames, -1, 3))
+
+
 def test_partial_holes_are_bridged_where_the_noise_allows(test_clip):
     """Holes of a few dozen frames in part of the body: the angles' smoother bridges them
     better than the network fills them, on a clean take; under position noise (and
@@ -499,12 +505,12 @@ def test_partial_holes_are_bridged_where_the_noise_allows(test_clip):
     obs = parse_corruption("gaps:0.01,20").apply(truth, seed=0)
     engine = registry.create("cae")
     missing = ~obs.observed
-    assert (engine.bridged_holes(obs, bridge_gaps(obs)) == missing & (hole_length(missing) <= 60)).all()
+    assert (engine.bridged_holes(obs, *_bridged_with_positions(obs)) == missing & (hole_length(missing) <= 60)).all()
     assert (hole_length(missing)[missing] > 6).mean() > 0.5
     assert _gap_error("cae", truth, obs) < 0.8 * _gap_error("cae:partial_hole_frames=0", truth, obs)
     noisy = parse_corruption("spatial:1+gaps:0.01,20").apply(truth, seed=0)
     missing = ~noisy.observed
-    assert (engine.bridged_holes(noisy, bridge_gaps(noisy)) == missing & (hole_length(missing) <= 6)).all()
+    assert (engine.bridged_holes(noisy, *_bridged_with_positions(noisy)) == missing & (hole_length(missing) <= 6)).all()
 
 
 def test_short_gaps_blend_in_the_smoothers_fill(test_clip):
