@@ -119,7 +119,8 @@ class TrainingParams:
     descendants lie this close keep their smoothed observed angles where the noise is in the
     angles, 0 for none (both: the module docstring); ``views``: how many of
     :data:`VIEWS` (the take, its left/right mirror, the take played backwards, the mirror
-    played backwards) are completed and averaged (all: the module docstring);
+    played backwards) are completed and averaged (all: the module docstring; 0: the
+    weights' own, :meth:`ConvAutoencoderEngine.views_used`);
     ``short_hole_frames``: holes in a joint's angles up to this long are bridged by the
     constant-velocity smoother and count as observed (0: none); ``partial_hole_frames``:
     so are holes up to this long in frames where the root is observed, where the take's
@@ -157,7 +158,7 @@ class TrainingParams:
     anchor: bool = True
     short_lever_cm: float = 5.0
     angle_lever_cm: float = 30.0
-    views: int = 3
+    views: int = 0
     short_hole_frames: int = 6
     partial_hole_frames: int = 60
     hole_blend_frames: int = 60
@@ -168,8 +169,8 @@ class TrainingParams:
             raise ValueError(f"input_fill must be 'zero' or 'linear', got {self.input_fill!r}")
         if self.sampling not in ("frames", "clips"):
             raise ValueError(f"sampling must be 'frames' or 'clips', got {self.sampling!r}")
-        if self.views not in range(1, len(VIEWS) + 1):
-            raise ValueError(f"views must be 1 to {len(VIEWS)}, got {self.views}")
+        if self.views not in range(len(VIEWS) + 1):
+            raise ValueError(f"views must be 1 to {len(VIEWS)}, or 0 for the weights' own, got {self.views}")
         for name in ("short_hole_frames", "partial_hole_frames", "hole_blend_frames"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be 0 (off) or a number of frames, got {getattr(self, name)}")
@@ -453,8 +454,9 @@ class ConvAutoencoderEngine(Engine):
         if self.params.anchor:
             ground, theta = anchored_trajectory(ground, theta, known[:, 0], step)
         image, mask = encode(layout, image_positions, theta, ground), image_mask(layout, known)
-        mirror = mirror_rows(layout, imaging.names) if self.params.views > 1 else None
-        net_out = self.complete(image, mask, mirror, self.params.views)
+        views = self.views_used()
+        mirror = mirror_rows(layout, imaging.names) if views > 1 else None
+        net_out = self.complete(image, mask, mirror, views)
         out = self.low_pass(net_out)
         path, theta = trajectory(out, known[:, 0], ground, theta)
         if self.params.anchor:  # across a gap inside the take: mostly the smoother's path
@@ -466,7 +468,7 @@ class ConvAutoencoderEngine(Engine):
         if constraints:  # a second pass, on the first one's trajectory
             image, mask, constrained = self._constrain(imaging, image, mask, constraints, ground, theta)
             exact |= constrained
-            net_out = self.complete(image, mask, mirror, self.params.views)
+            net_out = self.complete(image, mask, mirror, views)
             out = self.low_pass(net_out)
         raw = decode(layout, net_out, ground, theta)
         raw_positions = imaging.targets(raw, P)  # the take's joints where the network put them
@@ -523,6 +525,18 @@ class ConvAutoencoderEngine(Engine):
             return ref, {"reference_joints": short_lever_joints(skeleton, p.short_lever_cm, observed)}
         step = observation.capture_step
         return ik_reference(skeleton, bridged, observed, positions, p.short_lever_cm, p.angle_lever_cm, smoothed, step)
+
+    def views_used(self) -> int:
+        """How many of :data:`VIEWS` a clean completes: ``views``, or where it is 0 what
+        validation chose for the weights' network. Three for a network at the model's rate
+        (CMU's held-out subjects 05/06); two, the take and its mirror, for one at
+        :attr:`NETWORK_FPS`, whose completions of the take played backwards make the mean
+        worse (Bandai validation, 5 seeds, gap error with two views against three:
+        ``block:1s`` 1.856 against 1.965 cm for the universal weights, 2.251 against 2.430
+        for the Bandai ones; level under noise; ``docs/engines/cae.md``, *Views*)."""
+        if self.params.views:
+            return self.params.views
+        return 3 if self.network_fps_ == self.fps_ else 2
 
     def low_pass(self, out: np.ndarray) -> np.ndarray:
         """The network's completion ``out`` (F, H) smoothed over time by a Gaussian of std

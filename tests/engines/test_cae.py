@@ -604,7 +604,8 @@ def test_an_image_retimed_is_the_image_of_the_take_at_that_rate(walk):
 def test_the_network_sees_the_take_at_its_own_rate(tiny_fit, tmp_path, monkeypatch):
     """Weights trained now run their network at 60 fps on a 120-fps view and say so in
     their arrays; weights saved before that (CMU's committed ones) run it at the model's
-    rate; a rate that is none is refused."""
+    rate; a rate that is none is refused. Unless asked for others, the first runs two
+    views (the take and its mirror), the second three."""
     engine, motions = tiny_fit
     assert (engine.fps_, engine.network_fps_) == (120.0, CAE.NETWORK_FPS) == (120.0, 60.0)
     before = CAE().load(CAE().default_weights_dir() / "cmu")
@@ -618,6 +619,8 @@ def test_the_network_sees_the_take_at_its_own_rate(tiny_fit, tmp_path, monkeypat
     obs = parse_corruption("block:30").apply(motions[0].slice(0, 161), seed=0)
     out = again.clean(obs)
     assert seen and seen[0][-1] == 96  # 81 frames at 60 fps, padded to a multiple of 32
+    assert seen[0][0] == again.views_used() == 2 and before.views_used() == 3
+    assert CAE(CAE.Params(views=3)).load(tmp_path).views_used() == 3
     assert out.motion.n_frames == 161 and np.isfinite(out.motion.channels).all()
     again.network_fps_ = 0.0
     again.save(tmp_path / "broken")
