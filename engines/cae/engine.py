@@ -20,9 +20,9 @@ network completes the image of a take and IK turns it back into angles (the pape
    smoothed first (:func:`anchored_trajectory`: the image is root-relative, so the root's noise would
    enter every row), leaning :data:`SMOOTHER_PATH_SHARE` on the smoother's fill inside a gap.
 4. ``anchor`` (ours, default): the network's miss at the known entries (its bottleneck loses a few
-   cm of every pose) is smoothed row by row by the constant-velocity smoother, bridged over holes and
-   added; its noise is the observation's mean-square second difference
-   (:func:`workbench.engine.smoothing.measurement_variance`, ``robust=False``: angle noise moves
+   cm of every pose) is smoothed row by row by the constant-velocity smoother, bridged over holes
+   (fading inside them over ``miss_fade_s``) and added; its noise is the observation's mean-square second
+   difference (:func:`workbench.engine.smoothing.measurement_variance`, ``robust=False``: angle noise moves
    positions with heavy tails, which a median misses). Holes of L < ``hole_blend_frames`` frames
    with the root unknown move towards the smoother's fill by 1 - L / ``hole_blend_frames`` (ours: the
    network was trained for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference`
@@ -47,7 +47,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.core.channels import hole_length, interpolate_gaps, known_at
+from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, known_at
 from workbench.core.kinematics import forward_kinematics, joint_positions, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, channel_matrix, position_unknown
 from workbench.core.skeleton import Skeleton
@@ -129,6 +129,9 @@ class TrainingParams:
     constant-velocity smoother's (0: none; all three: the module docstring);
     ``output_sigma_frames``: the network's completion is smoothed over time by a
     Gaussian of this std in network frames before it is used (0: none; the module docstring).
+    ``miss_fade_s``: the network's miss bridged across a hole fades by
+    exp(-d / this) at d seconds from the nearest known frame (0: no fading;
+    :meth:`ConvAutoencoderEngine.correction`).
     ``universal``: the image holds the canonical humanoid instead of the take's joints
     (:mod:`.bodies`), so the weights train on several skeletons together and clean any
     that maps onto it; a plain engine with no weights for a take's skeleton cleans it
@@ -163,6 +166,7 @@ class TrainingParams:
     partial_hole_frames: int = 60
     hole_blend_frames: int = 60
     output_sigma_frames: float = 1.5
+    miss_fade_s: float = 1.0
 
     def __post_init__(self) -> None:
         if self.input_fill not in ("zero", "linear"):
@@ -183,6 +187,8 @@ class TrainingParams:
             raise ValueError(
                 f"output_sigma_frames must be 0 (off) or a positive number of frames, got {self.output_sigma_frames}"
             )
+        if not (np.isfinite(self.miss_fade_s) and self.miss_fade_s >= 0):
+            raise ValueError(f"miss_fade_s must be 0 (off) or a positive time in seconds, got {self.miss_fade_s}")
 
 
 class ConvAutoencoderEngine(Engine):
@@ -550,7 +556,10 @@ class ConvAutoencoderEngine(Engine):
     ) -> np.ndarray:
         """(F, H) added to the network's output ``out``: its miss (image - out) in full at the
         ``exact`` entries; at the other known entries the miss smoothed row by row by the
-        constant-velocity smoother (0 without ``anchor``); bridged linearly across the holes.
+        constant-velocity smoother (0 without ``anchor``); bridged linearly across the holes,
+        there faded by exp(-d / ``miss_fade_s``), d the time (s) to the row's nearest known
+        frame: the network's miss at a gap's edges tells less of its miss deeper inside
+        (ours; Bandai validation, 5 seeds, ``docs/engines/cae.md``, *Fading the miss*).
 
         The smoother's measurement variance is the observation's (its noise is what the miss
         must shed; a clean take's miss passes through), from the mean square of its second
@@ -566,7 +575,10 @@ class ConvAutoencoderEngine(Engine):
             np.copyto(miss, cv_smooth(miss, mask, r / lam, r), where=~exact)
             kept = mask
         miss[~kept] = 0.0
-        return interpolate_gaps(miss, mask)
+        bridged = interpolate_gaps(miss, mask)
+        if self.params.miss_fade_s:
+            bridged *= np.exp(-gap_distance(~mask) / (self.params.miss_fade_s * self.fps_))
+        return bridged
 
     def blend_short_holes(self, out: np.ndarray, mask: np.ndarray, step: float = 1.0) -> np.ndarray:
         """``out`` (F, H) with its entries in each hole of L unknown frames of a row (L <
