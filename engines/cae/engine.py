@@ -576,8 +576,10 @@ class ConvAutoencoderEngine(Engine):
             kept = mask
         miss[~kept] = 0.0
         bridged = interpolate_gaps(miss, mask)
-        if self.params.miss_fade_s:
-            bridged *= np.exp(-gap_distance(~mask) / (self.params.miss_fade_s * self.fps_))
+        holes = ~mask
+        cols = np.flatnonzero(holes.any(axis=0))  # rows with a hole: a denoised take has none
+        if self.params.miss_fade_s and cols.size:
+            bridged[:, cols] *= np.exp(-gap_distance(holes[:, cols]) / (self.params.miss_fade_s * self.fps_))
         return bridged
 
     def blend_short_holes(self, out: np.ndarray, mask: np.ndarray, step: float = 1.0) -> np.ndarray:
