@@ -132,6 +132,9 @@ class TrainingParams:
     ``miss_fade_s``: the network's miss bridged across a hole fades by
     exp(-d / this) at d seconds from the nearest known frame (0: no fading;
     :meth:`ConvAutoencoderEngine.correction`).
+    ``init_weights``: a weights folder of this engine to train on from (its network and its
+    image normalisation, the layout and network rate the same; fine-tuning, or a run
+    continued), instead of a fresh network (empty: fresh).
     ``universal``: the image holds the canonical humanoid instead of the take's joints
     (:mod:`.bodies`), so the weights train on several skeletons together and clean any
     that maps onto it; a plain engine with no weights for a take's skeleton cleans it
@@ -156,6 +159,7 @@ class TrainingParams:
     universal: bool = trained(False)
     sampling: str = training("clips")
     seed: int = training(0)
+    init_weights: str = training("")
     bf16: bool = True
     keep_observed: bool = False
     anchor: bool = True
@@ -243,6 +247,8 @@ class ConvAutoencoderEngine(Engine):
         p = self.params
         layout = CANONICAL_LAYOUT if p.universal else Layout.from_skeleton(motions[0].skeleton)
         net = self.build_network(layout.n_rows)
+        self.started_from_ = None
+        units = self._start_from(p.init_weights, net, layout) if p.init_weights else None
         first = motions[0]  # at the model's rate, which the fitted engine runs at
         motions = [resample(m, self.NETWORK_FPS) for m in motions]  # windows and gaps in network frames
         if p.window_frames % net.time_multiple:
@@ -274,10 +280,15 @@ class ConvAutoencoderEngine(Engine):
                     images.append(encode(layout, P, imaging.heading(P, R[:, 0])))
                     groups.append(group)
         mirror = mirror_rows(layout, imaging.names) if p.mirror else None
-        pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
-        # float32 as saved, so a loaded engine computes exactly what the fitted one does
-        mean = pool.mean(axis=0).astype(np.float32).astype(float)
-        std = np.maximum(pool.std(axis=0), 1e-6).astype(np.float32).astype(float)
+        if units is None:
+            pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
+            # float32 as saved, so a loaded engine computes exactly what the fitted one does
+            units = (
+                pool.mean(axis=0).astype(np.float32).astype(float),
+                np.maximum(pool.std(axis=0), 1e-6).astype(np.float32).astype(float),
+            )
+            del pool
+        mean, std = units
         sampler = WindowSampler(
             images,
             mean,
@@ -313,10 +324,53 @@ class ConvAutoencoderEngine(Engine):
         self.fitted_on(first)
         self.network_fps_ = self.NETWORK_FPS
 
+    def _start_from(self, folder: str, net, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+        """Load the network of the weights in ``folder`` into ``net`` (the fresh network of
+        ``layout``) and return their image mean and std (H,): a network trained on goes on
+        in the units it knows. Sets :attr:`started_from_`, the record of those weights
+        that the new manifest keeps (their checksum, spec and training: clips, data sets
+        and licences, which the new weights inherit).
+
+        Raises
+        ------
+        EngineError
+            Files :func:`~workbench.engine.weights.load_weights` refuses, weights of another
+            engine, or of another image layout, network rate or network shape.
+        """
+        from workbench.engine.torch_support import load_module_arrays
+        from workbench.engine.weights import load_weights
+
+        arrays, manifest = load_weights(folder)
+        rate = np.asarray(arrays.get("network.fps", manifest.get("fps", np.nan)), float)
+        rate, problem = rate.item() if rate.size == 1 else np.nan, None
+        same_rows = all(
+            np.array_equal(arrays.get(f"layout.{k}"), getattr(layout, k)) for k in ("joints", "source", "parents")
+        )
+        if manifest.get("engine") != self.info.name:
+            problem = f"they are weights of engine {manifest.get('engine')!r}"
+        elif not same_rows:
+            problem = "their image holds other joints (another skeleton, or universal against not)"
+        elif rate != self.NETWORK_FPS:
+            problem = f"their network runs at {rate:g} fps, not {self.NETWORK_FPS:g}"
+        if problem is None:
+            try:
+                load_module_arrays(net, arrays, "net.")
+            except EngineError as err:
+                problem = str(err)
+        if problem is not None:
+            raise EngineError(
+                f"engine {self.info.name!r}: cannot train on from {folder}: {problem}; "
+                "name weights trained with the same engine, skeleton and network parameters"
+            )
+        self.started_from_ = {k: manifest.get(k) for k in ("sha256", "spec", "training")}
+        return arrays["image.mean"].astype(float), arrays["image.std"].astype(float)
+
     # -- fitted state ---------------------------------------------------------------
-    def training_record(self) -> dict[str, list[float]]:
-        """The loss of every epoch."""
-        return {"loss_per_epoch": [round(float(x), 5) for x in self.loss_log_]}
+    def training_record(self) -> dict[str, object]:
+        """The loss of every epoch; for a network trained on from other weights, their
+        record (``started_from``, :meth:`_start_from`)."""
+        record = {"loss_per_epoch": [round(float(x), 5) for x in self.loss_log_]}
+        return record if self.started_from_ is None else {**record, "started_from": self.started_from_}
 
     def state_arrays(self) -> dict[str, np.ndarray]:
         from workbench.engine.torch_support import module_arrays
@@ -348,6 +402,7 @@ class ConvAutoencoderEngine(Engine):
         self.std_ = arrays["image.std"].astype(float)
         self.constant_ = arrays["constant_joints"].astype(int)
         self.loss_log_ = arrays["training.loss_per_epoch"].astype(float)
+        self.started_from_ = manifest.get("started_from")
         rate = np.asarray(arrays.get("network.fps", manifest["fps"]), float)
         if rate.shape != () or not (np.isfinite(rate) and rate > 0):
             raise EngineError(

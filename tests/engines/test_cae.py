@@ -202,6 +202,41 @@ def test_fit_save_load_round_trip(tiny_fit, tmp_path, walk):
     np.testing.assert_array_equal(a.diagnostics["raw_positions"], b.diagnostics["raw_positions"])
 
 
+def test_training_goes_on_from_given_weights_and_refuses_weights_that_do_not_fit(tiny_fit, tmp_path):
+    """``init_weights``: the network and image units of the named weights, trained further
+    (at a learning rate of ~0 they come back as they were, where a fresh network does
+    not); weights of another engine or skeleton, or none, refused with what to do."""
+    import json
+
+    from workbench.engine.torch_support import module_arrays
+
+    engine, motions = tiny_fit
+    start = json.loads(engine.save(tmp_path / "start").read_text())
+    tiny = {"epochs": 1, "frames_per_epoch": 512, "window_frames": 64, "batch_size": 4, "time_scale_pct": 0.0}
+    still = {**tiny, "learning_rate": 1e-20, "ema_decay": 0.0, "seed": 1}  # another seed: another fresh network
+    fresh = CAE(CAE.Params(**still)).fit(motions)
+    on = CAE(CAE.Params(**still, init_weights=str(tmp_path / "start"))).fit(motions)
+    np.testing.assert_array_equal(on.mean_, engine.mean_)
+    np.testing.assert_array_equal(on.std_, engine.std_)
+    before, after, other = (module_arrays(e.net_) for e in (engine, on, fresh))
+    assert max(np.abs(after[k] - before[k]).max() for k in before) < 1e-6
+    assert max(np.abs(other[k] - before[k]).max() for k in before) > 0.1
+    saved = json.loads(on.save(tmp_path / "on").read_text())["started_from"]  # its provenance, licences with it
+    assert saved == {"sha256": start["sha256"], "spec": start["spec"], "training": None}
+    assert CAE().load(tmp_path / "on").training_record()["started_from"] == saved
+    assert "started_from" not in fresh.training_record()
+    committed = CAE().default_weights_dir().parent
+    refusals = {
+        tmp_path / "none": "no weights manifest here",
+        committed / "cae-vanilla" / "cmu": "weights of engine 'cae-vanilla'",
+        committed / "cae-universal" / "cmu+bandai": "other joints",
+        committed / "cae" / "cmu": "network runs at 120 fps, not 60",
+    }
+    for folder, why in refusals.items():
+        with pytest.raises(EngineError, match=why):
+            CAE(CAE.Params(**tiny, init_weights=str(folder))).fit(motions)
+
+
 def test_fit_refuses_mixed_skeletons(walk, kick):
     with pytest.raises(EngineError, match="skeleton"):
         CAE(CAE.Params(epochs=1)).fit([walk, kick])
