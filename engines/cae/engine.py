@@ -51,7 +51,7 @@ from workbench.core.channels import gap_distance, hole_length, interpolate_gaps,
 from workbench.core.kinematics import forward_kinematics, joint_positions, local_rotations, short_lever_joints
 from workbench.core.motion import Motion, Observation, channel_mask, channel_matrix, position_unknown
 from workbench.core.skeleton import Skeleton
-from workbench.engine import CleanResult, Engine, EngineError, trained, training
+from workbench.engine import TRAINED, CleanResult, Engine, EngineError, param_roles, trained, training
 from workbench.engine.signal import bridge_gaps, normalized_gaussian, rewrap_angles
 from workbench.engine.smoothing import (
     angles_bridge_holes,
@@ -335,7 +335,8 @@ class ConvAutoencoderEngine(Engine):
         ------
         EngineError
             Files :func:`~workbench.engine.weights.load_weights` refuses, weights of another
-            engine, or of another image layout, network rate or network shape.
+            engine, or with another value of a trained parameter (``input_fill``,
+            ``universal``, the network's widths), image layout, network rate or shape.
         """
         from workbench.engine.torch_support import load_module_arrays
         from workbench.engine.weights import load_weights
@@ -346,8 +347,18 @@ class ConvAutoencoderEngine(Engine):
         same_rows = all(
             np.array_equal(arrays.get(f"layout.{k}"), getattr(layout, k)) for k in ("joints", "source", "parents")
         )
+        saved, default = dict(manifest.get("params") or {}), self.Params()
+        differ = {
+            k: saved.get(k, getattr(default, k))
+            for k, role in param_roles(default).items()
+            if role == TRAINED and saved.get(k, getattr(default, k)) != getattr(self.params, k)
+        }
         if manifest.get("engine") != self.info.name:
             problem = f"they are weights of engine {manifest.get('engine')!r}"
+        elif differ:
+            problem = "they were trained with " + ", ".join(
+                f"{k}={v} (asked: {getattr(self.params, k)})" for k, v in differ.items()
+            )
         elif not same_rows:
             problem = "their image holds other joints (another skeleton, or universal against not)"
         elif rate != self.NETWORK_FPS:
@@ -360,7 +371,7 @@ class ConvAutoencoderEngine(Engine):
         if problem is not None:
             raise EngineError(
                 f"engine {self.info.name!r}: cannot train on from {folder}: {problem}; "
-                "name weights trained with the same engine, skeleton and network parameters"
+                "name weights trained with the same engine, skeleton and trained parameters"
             )
         self.started_from_ = {k: manifest.get(k) for k in ("sha256", "spec", "training")}
         return arrays["image.mean"].astype(float), arrays["image.std"].astype(float)

@@ -205,7 +205,8 @@ def test_fit_save_load_round_trip(tiny_fit, tmp_path, walk):
 def test_training_goes_on_from_given_weights_and_refuses_weights_that_do_not_fit(tiny_fit, tmp_path):
     """``init_weights``: the network and image units of the named weights, trained further
     (at a learning rate of ~0 they come back as they were, where a fresh network does
-    not); weights of another engine or skeleton, or none, refused with what to do."""
+    not); weights of another engine, skeleton or trained parameter, or none, refused with
+    what to do."""
     import json
 
     from workbench.engine.torch_support import module_arrays
@@ -226,15 +227,17 @@ def test_training_goes_on_from_given_weights_and_refuses_weights_that_do_not_fit
     assert CAE().load(tmp_path / "on").training_record()["started_from"] == saved
     assert "started_from" not in fresh.training_record()
     committed = CAE().default_weights_dir().parent
-    refusals = {
-        tmp_path / "none": "no weights manifest here",
-        committed / "cae-vanilla" / "cmu": "weights of engine 'cae-vanilla'",
-        committed / "cae-universal" / "cmu+bandai": "other joints",
-        committed / "cae" / "cmu": "network runs at 120 fps, not 60",
-    }
-    for folder, why in refusals.items():
+    refusals = [
+        (tmp_path / "none", {}, "no weights manifest here"),
+        (committed / "cae-vanilla" / "cmu", {}, "weights of engine 'cae-vanilla'"),
+        (committed / "cae-universal" / "cmu+bandai", {}, "trained with universal=True"),
+        (tmp_path / "start", {"input_fill": "zero"}, "trained with input_fill=linear"),
+        (committed / "cae" / "bandai", {}, "other joints"),
+        (committed / "cae" / "cmu", {}, "network runs at 120 fps, not 60"),
+    ]
+    for folder, params, why in refusals:
         with pytest.raises(EngineError, match=why):
-            CAE(CAE.Params(**tiny, init_weights=str(folder))).fit(motions)
+            CAE(CAE.Params(**tiny, **params, init_weights=str(folder))).fit(motions)
 
 
 def test_fit_refuses_mixed_skeletons(walk, kick):
