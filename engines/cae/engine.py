@@ -216,6 +216,10 @@ class ConvAutoencoderEngine(Engine):
     #: the rate (fps) the loaded or fitted network sees the motion at (weights saved
     #: before it was recorded: :attr:`fps_`)
     network_fps_: float | None = None
+    #: a skeleton without toes (or another optional canonical joint) trains the universal
+    #: network on the rows it has: those rows are never known in its windows and out of
+    #: the loss, as at inference, where the network fills them and they are dropped
+    TRAINS_WITHOUT_OPTIONAL_JOINTS = True
     QUICK_FIT = {
         "epochs": "1",
         "frames_per_epoch": "512",
@@ -242,7 +246,7 @@ class ConvAutoencoderEngine(Engine):
 
     def _train(self, motions: Sequence[Motion]) -> None:
         """Build the network and train it on ``motions``; sets the fitted state."""
-        from .training import WindowSampler, train
+        from .training import WindowSampler, image_units, train
 
         p = self.params
         layout = CANONICAL_LAYOUT if p.universal else Layout.from_skeleton(motions[0].skeleton)
@@ -253,11 +257,13 @@ class ConvAutoencoderEngine(Engine):
         motions = [resample(m, self.NETWORK_FPS) for m in motions]  # windows and gaps in network frames
         if p.window_frames % net.time_multiple:
             raise EngineError(f"window_frames must be a multiple of {net.time_multiple}, got {p.window_frames}")
-        images, groups, constant, maskable = [], [], np.zeros(0, int), np.arange(1, layout.n_joints)
+        images, groups, present = [], [], []
+        constant, maskable = np.zeros(0, int), np.arange(1, layout.n_joints)
         rng = np.random.default_rng(p.seed)
         for group, motions_of_one in enumerate(_by_skeleton(motions)):
             skeleton = motions_of_one[0].skeleton
             imaging = self.imaging(skeleton, layout)
+            rows = image_mask(layout, imaging.known(np.ones((1, skeleton.n_joints), bool)))[0]  # (H,) it has
             varies = np.concatenate([m.angles_deg for m in motions_of_one]).std(axis=0) > 1e-9  # (J, 3) per angle
             varies[0] = False
             if not p.universal:  # joints that never move are always known; the others can go missing
@@ -279,15 +285,10 @@ class ConvAutoencoderEngine(Engine):
                     P = imaging.positions(P)
                     images.append(encode(layout, P, imaging.heading(P, R[:, 0])))
                     groups.append(group)
+                    present.append(rows)
         mirror = mirror_rows(layout, imaging.names) if p.mirror else None
         if units is None:
-            pool = np.concatenate(images + ([im[:, mirror[0]] * mirror[1] for im in images] if mirror else []))
-            # float32 as saved, so a loaded engine computes exactly what the fitted one does
-            units = (
-                pool.mean(axis=0).astype(np.float32).astype(float),
-                np.maximum(pool.std(axis=0), 1e-6).astype(np.float32).astype(float),
-            )
-            del pool
+            units = image_units(images, present, mirror)
         mean, std = units
         sampler = WindowSampler(
             images,
@@ -305,6 +306,7 @@ class ConvAutoencoderEngine(Engine):
             p.sampling,
             rng,
             groups,
+            present,
         )
         batches = max(1, p.frames_per_epoch // (p.batch_size * p.window_frames))
         log = train(

@@ -32,7 +32,9 @@ Unknown entries enter bridged linearly over time from the known entries of their
 gap; rows never known enter as 0, the training mean) or all as 0 (``"zero"``, the paper); the
 known-mask is the second input channel.
 
-The loss is the L1 distance over the whole window (all rows, all frames), as in the paper. Adam at
+The loss is the L1 distance over the whole window (all rows, all frames), as in the paper; a
+universal network leaves out the rows of canonical joints the window's skeleton lacks (toes):
+they are never known in its input either, as at inference. Adam at
 the rate :func:`learning_rate_at` gives each epoch: held, then annealed (cosine) to a tenth.
 The weights kept are the exponential moving average of the steps' weights (``ema_decay``
 per step; ours: it damps the last steps' noise).
@@ -43,6 +45,7 @@ History and results: docs/engines/cae.md.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Sequence
 
 import numpy as np
@@ -103,6 +106,7 @@ class WindowSampler:
         sampling: str,
         rng: np.random.Generator,
         groups: Sequence[int] | None = None,
+        present: Sequence[np.ndarray] | None = None,
     ) -> None:
         self.max_speed = 1 + time_scale_pct / 100
         span = int(math.ceil((window_frames - 1) * self.max_speed)) + 2
@@ -118,12 +122,15 @@ class WindowSampler:
         self.layout, self.maskable, self.T = layout, maskable, window_frames
         self.sigma, self.body_scale, self.noise = gap_sigma_frames, body_scale_pct / 100, input_noise
         self.fill, self.rng = input_fill, rng
+        H = images[0].shape[1]
+        self.present = np.ones((len(images), H), bool) if present is None else np.stack(present)
 
-    def windows(self, size: int) -> np.ndarray:
+    def windows(self, size: int) -> tuple[np.ndarray, np.ndarray]:
         """(size, T, H) normalised windows: each played ``speed`` times as fast (drawn
         log-uniformly in [1 / max_speed, max_speed]; linear interpolation, the velocity
         and turning-rate rows times ``speed``), scaled uniformly by 1 +- body_scale (every
-        row but the turning rate: lengths and velocities), half of them mirrored."""
+        row but the turning rate: lengths and velocities), half of them mirrored; and
+        (size, H) the rows each window's skeleton has (its image's ``present``)."""
         rng, T = self.rng, self.T
         clips = rng.choice(len(self.images), size=size, p=self.weights)
         speed = np.exp(rng.uniform(-1.0, 1.0, size) * np.log(self.max_speed))
@@ -132,16 +139,19 @@ class WindowSampler:
         X = np.stack([interpolate_frames(self.images[c], t[b]) for b, c in enumerate(clips)])
         X[..., -TAIL_ROWS:] *= speed[:, None, None]
         X[..., :-1] *= rng.uniform(1 - self.body_scale, 1 + self.body_scale, (size, 1, 1))
+        present = self.present[clips]
         if self.mirror is not None:
             flip = rng.random(size) < 0.5
             X[flip] = X[flip][..., self.mirror[0]] * self.mirror[1]
-        return ((X - self.mean) / self.std).astype(np.float32)
+            present[flip] = present[flip][:, self.mirror[0]]
+        return ((X - self.mean) / self.std).astype(np.float32), present
 
-    def batch(self, size: int, gap_mean: float) -> tuple[np.ndarray, torch.Tensor]:
-        """(size, T, H) normalised windows (the target) and the network input (size, 2,
-        H, T): the windows with holes, noise N(0, input_noise^2) on the known entries."""
+    def batch(self, size: int, gap_mean: float) -> tuple[np.ndarray, torch.Tensor, np.ndarray]:
+        """(size, T, H) normalised windows (the target), the network input (size, 2, H,
+        T): the windows with holes, noise N(0, input_noise^2) on the known entries, and
+        (size, H) the rows each window's skeleton has (the others never known)."""
         rng, T = self.rng, self.T
-        X = self.windows(size)
+        X, present = self.windows(size)
         observed = np.ones((size, T, self.layout.n_joints), bool)
         block = rng.random(size) < 0.5
         blocks = []
@@ -161,8 +171,33 @@ class WindowSampler:
                 start = s + int(rng.integers(0, n - length + 1))
                 for j in rng.choice(self.layout.joints, size=int(rng.integers(1, 4)), replace=False):
                     mask[b, start : start + length, self.layout.rows(int(j))] = True
+        mask &= present[:, None, :]
         noisy = X + (self.noise * rng.standard_normal(X.shape)).astype(np.float32) if self.noise > 0 else X
-        return X, network_input(noisy, mask, self.fill)
+        return X, network_input(noisy, mask, self.fill), present
+
+
+def image_units(
+    images: Sequence[np.ndarray], present: Sequence[np.ndarray], mirror: tuple[np.ndarray, np.ndarray] | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The normalisation of training images (each (F_i, H)): the mean and std (H,) of
+    each row over the images that have it (``present``, one (H,) bool per image; a row
+    no image has gets 0 and 1), their mirrored copies too, the std floored at 1e-6;
+    rounded to float32 as they are saved, so a loaded engine computes what the fitted
+    one does."""
+    rows = [im if has.all() else np.where(has, im, np.nan) for im, has in zip(images, present)]
+    if mirror is not None:
+        rows += [im[:, mirror[0]] * mirror[1] for im in rows]
+    pool = np.concatenate(rows)
+    del rows
+    if all(has.all() for has in present):  # the same numbers, without nanmean's copies of the pool
+        mean, std = pool.mean(axis=0), pool.std(axis=0)
+    else:
+        with warnings.catch_warnings():  # the rows no image has: NaN, then 0 and 1
+            warnings.simplefilter("ignore", RuntimeWarning)
+            mean, std = np.nanmean(pool, axis=0), np.nanstd(pool, axis=0)
+    none = np.isnan(mean)
+    mean[none], std[none] = 0.0, 1.0
+    return mean.astype(np.float32).astype(float), np.maximum(std, 1e-6).astype(np.float32).astype(float)
 
 
 def network_input(X: np.ndarray, mask: np.ndarray, fill: str) -> torch.Tensor:
@@ -207,9 +242,10 @@ def train(
         gap = gap_mean_frames(epoch, curriculum_epochs)
         total = 0.0
         for _ in range(batches_per_epoch):
-            X, x = sampler.batch(batch_size, gap)
+            X, x, present = sampler.batch(batch_size, gap)
             target = torch.from_numpy(np.ascontiguousarray(X.transpose(0, 2, 1)))
-            loss = (net(x) - target).abs().mean()
+            rows = torch.from_numpy(present[:, :, None].astype(np.float32))  # the L1 mean over the rows there are
+            loss = ((net(x) - target).abs() * rows).mean() * (present.size / present.sum())
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()

@@ -271,8 +271,8 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
         sampling="frames",
         rng=np.random.default_rng(0),
     )
-    X = sampler.windows(32)
-    assert X.shape == (32, 64, H)
+    X, present = sampler.windows(32)
+    assert X.shape == (32, 64, H) and present.shape == (32, H) and present.all()
     slope = np.diff(X[:, :, :-3], axis=1) / np.linspace(1.0, 2.0, H)[:-3]
     speed_scale = slope[:, 0, 0]
     np.testing.assert_allclose(slope, speed_scale[:, None, None] * np.ones_like(slope), rtol=1e-3)
@@ -469,7 +469,8 @@ def test_ema_keeps_the_average_of_the_steps_weights():
 
         def batch(self, size, gap):
             X = self.rng.normal(size=(size, 32, 8)).astype(np.float32)
-            return X, torch.from_numpy(np.stack([X, np.ones_like(X)], axis=1).transpose(0, 1, 3, 2).copy())
+            x = torch.from_numpy(np.stack([X, np.ones_like(X)], axis=1).transpose(0, 1, 3, 2).copy())
+            return X, x, np.ones((size, 8), bool)
 
     start = VanillaNet(bf16=False).state_dict()
 

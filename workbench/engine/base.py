@@ -245,6 +245,9 @@ class Engine:
     MODEL_FPS : float or None
         The rate (fps) ``fit`` resamples the training takes to (a class attribute); None,
         the default: the takes' own, which they must share.
+    TRAINS_WITHOUT_OPTIONAL_JOINTS : bool
+        A universal variant's ``fit`` leaves out the canonical joints a training skeleton
+        lacks (a class attribute; False, the default: it refuses such skeletons).
     skeleton_signature_ : str or None
         The fitted skeleton layout (of the takes' body view,
         :func:`workbench.engine.view.body_skeleton`),
@@ -276,6 +279,9 @@ class Engine:
     #: the rate ``fit`` resamples its training takes to (fps); None: train at the takes'
     #: own rate, which they must share
     MODEL_FPS: ClassVar[float | None] = None
+    #: a universal variant's ``fit`` leaves out the canonical joints a training skeleton
+    #: lacks (never trains on a placeholder for them), so it takes such skeletons
+    TRAINS_WITHOUT_OPTIONAL_JOINTS: ClassVar[bool] = False
     #: the folder the weights in use were loaded from (None: fitted here, or not fitted)
     loaded_from_: Path | None = None
     #: which weights the last clean used, for its output line and the app: "skeleton-specific
@@ -448,7 +454,8 @@ class Engine:
         and resampled to :attr:`MODEL_FPS` where the class sets
         one; without it they must share one frame rate. A :attr:`skeleton_agnostic`
         variant takes several skeletons, each of which must map onto the canonical
-        humanoid with every canonical joint, resampled to :attr:`MODEL_FPS` or else
+        humanoid, with every canonical joint unless the class
+        :attr:`TRAINS_WITHOUT_OPTIONAL_JOINTS`, resampled to :attr:`MODEL_FPS` or else
         :data:`UNIVERSAL_FPS`.
 
         Parameters
@@ -474,9 +481,10 @@ class Engine:
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
         views = [model_motion(m, self.humanoid_overrides) for m in motions]
-        if self.skeleton_agnostic:  # each in its own body view; every skeleton must map, whole
+        if self.skeleton_agnostic:  # each in its own body view; every skeleton must map
             for view in {v.skeleton.signature(): v for v in views}.values():
-                if lacking := self.humanoid(view.skeleton).lacking():  # a placeholder would train as truth
+                lacking = self.humanoid(view.skeleton).lacking()
+                if lacking and not self.TRAINS_WITHOUT_OPTIONAL_JOINTS:  # a placeholder would train as truth
                     raise EngineError(
                         f"engine {name!r}: a universal variant trains on skeletons with every canonical joint; "
                         f"{view.name or 'a training take'} has none for {', '.join(lacking)} "
