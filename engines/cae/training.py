@@ -32,14 +32,11 @@ Unknown entries enter bridged linearly over time from the known entries of their
 gap; rows never known enter as 0, the training mean) or all as 0 (``"zero"``, the paper); the
 known-mask is the second input channel.
 
-The loss is the L1 distance over the whole window (all rows, all frames), as in the paper; a
-universal network leaves out the rows of canonical joints the window's skeleton lacks (toes):
-they are never known in its input either, as at inference. Adam at
-the rate :func:`learning_rate_at` gives each epoch: held, then annealed (cosine) to a tenth.
-The weights kept are the exponential moving average of the steps' weights (``ema_decay``
-per step; ours: it damps the last steps' noise).
-
-History and results: docs/engines/cae.md.
+The loss is the L1 distance over the whole window, as in the paper, but for the rows of canonical
+joints the window's skeleton lacks (toes), never known in its input either, as at inference. Adam
+at the rate :func:`learning_rate_at` gives each epoch: held, then annealed (cosine) to a tenth. The
+weights kept are the exponential moving average of the steps' weights (``ema_decay`` per step;
+ours: it damps the last steps' noise). History and results: docs/engines/cae.md.
 """
 
 from __future__ import annotations
