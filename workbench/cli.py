@@ -747,7 +747,9 @@ def build_parser() -> argparse.ArgumentParser:
             help=f"the clips of this split of every dataset that has one (default: {default_split})",
         )
         data_opt(sp)
-        sp.add_argument("--clips", metavar="GLOB", help="only clips whose id matches, e.g. 'cmu/walk/*'")
+        sp.add_argument(
+            "--clips", metavar="GLOB", help="only clips whose id or a part of it matches, e.g. 'cmu/walk/*' or 'walk'"
+        )
         sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
         sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
 

@@ -165,7 +165,8 @@ def select(
     clips: list[Clip], split: str | None = None, dataset: str | None = None, pattern: str | None = None
 ) -> list[Clip]:
     """Filter clips: ``split`` one of :data:`SPLITS` or "all", ``dataset`` a name or
-    several joined by commas (``cmu,bandai``), ``pattern`` a glob on the clip id (``cmu/walk/*``)."""
+    several joined by commas (``cmu,bandai``), ``pattern`` a glob on the clip id or a part
+    of it (``cmu/walk/*``; ``walk``: every clip with "walk" in its id)."""
     out = clips
     if split and split != "all":
         out = [c for c in out if c.split == split]
