@@ -350,11 +350,8 @@ class ConvAutoencoderEngine(Engine):
             np.array_equal(arrays.get(f"layout.{k}"), getattr(layout, k)) for k in ("joints", "source", "parents")
         )
         saved, default = dict(manifest.get("params") or {}), self.Params()
-        differ = {
-            k: saved.get(k, getattr(default, k))
-            for k, role in param_roles(default).items()
-            if role == TRAINED and saved.get(k, getattr(default, k)) != getattr(self.params, k)
-        }
+        trained_with = {k: saved.get(k, getattr(default, k)) for k, r in param_roles(default).items() if r == TRAINED}
+        differ = {k: v for k, v in trained_with.items() if v != getattr(self.params, k)}
         if manifest.get("engine") != self.info.name:
             problem = f"they are weights of engine {manifest.get('engine')!r}"
         elif differ:

@@ -181,11 +181,11 @@ def image_units(
     no image has gets 0 and 1), their mirrored copies too, the std floored at 1e-6;
     rounded to float32 as they are saved, so a loaded engine computes what the fitted
     one does."""
-    rows = [im if has.all() else np.where(has, im, np.nan) for im, has in zip(images, present)]
+    parts = [im if has.all() else np.where(has, im, np.nan) for im, has in zip(images, present)]
     if mirror is not None:
-        rows += [im[:, mirror[0]] * mirror[1] for im in rows]
-    pool = np.concatenate(rows)
-    del rows
+        parts += [im[:, mirror[0]] * mirror[1] for im in parts]
+    pool = np.concatenate(parts)
+    del parts
     if all(has.all() for has in present):  # the same numbers, without nanmean's copies of the pool
         mean, std = pool.mean(axis=0), pool.std(axis=0)
     else:
