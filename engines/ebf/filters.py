@@ -3,7 +3,8 @@
 
 Per frame the network sees the C joint-angle channels (the rotation channels of every
 joint but the root; unwrapped, normalised with the training mean and std) and the root's
-3 angular velocities (its own frame, deg/s over the last 1/15 s: context, not output).
+3 angular velocities (its own frame, deg/s over the last 1/15 s: heading-invariant
+context, not output).
 EBF: 4 tanh layers encode each frame to 64 numbers; 2 bidirectional LSTM layers
 (``lstm_units`` per direction, input dropout 0.5) read the 31-frame window around each
 output frame (15 back, 15 ahead); 4 fully connected layers (tanh, then exp) give one
@@ -27,8 +28,7 @@ stream); ``smoothing_context=true`` (ours) likewise shows it the width kalman's 
 would take for each whole channel (:func:`.features.smoothing_context`).
 ``quadratic=true`` (ours) fits a parabola under the predicted Gaussian weights instead
 of taking their mean (:func:`.nets.local_quadratic_weights`): no flattened peaks.
-``relative_width=true`` (ours, with the smoothing context) predicts each width as a factor
-of kalman's: motion unlike the training's falls back on it. Each variant has its own weights.
+Each variant has its own weights folder, ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
 Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
 the filter's std in frames (free filters: the std of the weights; quadratic ones: the std
@@ -110,10 +110,6 @@ class FilterEngine(WindowEngine):
     def quadratic(self) -> bool:
         return getattr(self.params, "quadratic", False)
 
-    @property
-    def relative_width(self) -> bool:
-        return getattr(self.params, "relative_width", False)
-
     def _build_net(self, n_channels: int):
         import torch
 
@@ -129,14 +125,13 @@ class FilterEngine(WindowEngine):
             lstm_units=getattr(self.params, "lstm_units", 0),
             dropout=self.params.dropout,
             window=L,
-            skip=C if self.relative_width else 0,
         )
-        with torch.no_grad():  # start from a Gaussian of INITIAL_SIGMA_FRAMES everywhere (relative: kalman's width)
+        with torch.no_grad():  # start from a Gaussian of INITIAL_SIGMA_FRAMES everywhere
             d = torch.arange(-RADIUS, RADIUS + 1, dtype=torch.float32)
             start = (
                 (-0.5 * d**2 / INITIAL_SIGMA_FRAMES**2).repeat_interleave(C)
                 if self.free
-                else torch.full((C,), 0.0 if self.relative_width else math.log(INITIAL_SIGMA_FRAMES))
+                else torch.full((C,), math.log(INITIAL_SIGMA_FRAMES))
             )
             net.head[-1].bias[: start.numel()] = start
         return net
@@ -240,10 +235,6 @@ class EBF(FilterEngine):
         #: the predicted Gaussian weights a local quadratic fit instead of a mean (our
         #: addition: it follows peaks and fast motion that a mean flattens and lags)
         quadratic: bool = trained(False)
-        #: the network predicts each filter's width as a factor of the width kalman would
-        #: take for the channel (its log added to the log width; our addition, with
-        #: smoothing_context): motion unlike any trained on falls back on kalman's width
-        relative_width: bool = trained(False)
 
         def __post_init__(self) -> None:
             super().__post_init__()
@@ -251,8 +242,6 @@ class EBF(FilterEngine):
                 raise ValueError("lstm_units must be >= 1")
             if self.free and self.quadratic:
                 raise ValueError("free and quadratic are two filter shapes; choose one")
-            if self.relative_width and (self.free or not self.smoothing_context):
-                raise ValueError("relative_width needs smoothing_context=true and Gaussian filters (not free)")
 
     info = EngineInfo(
         name="ebf",

@@ -69,29 +69,15 @@ class WindowNet(nn.Module):
     encoder: 4 tanh layers to a 64-d code (EBF, EBD) or the raw features (BF, NN).
     recurrent: the 2-layer B-LSTM and a 4-layer head (EBF, BF, EBD), or (NN) 6 fully
     connected layers over the flattened (L x features) window. Either core drops its
-    inputs out with probability ``dropout`` in training. ``skip``: the last ``skip``
-    input features pass around the network and are added to its first ``skip`` outputs
-    at the window's centre frame (a take's log smoothing widths, which the predicted log
-    widths then correct rather than replace); each code carries them at its end.
+    inputs out with probability ``dropout`` in training.
     """
 
     def __init__(
-        self,
-        n_in: int,
-        n_out: int,
-        *,
-        encoder: bool,
-        recurrent: bool,
-        lstm_units: int,
-        dropout: float,
-        window: int,
-        skip: int = 0,
+        self, n_in: int, n_out: int, *, encoder: bool, recurrent: bool, lstm_units: int, dropout: float, window: int
     ) -> None:
         super().__init__()
-        self.skip = skip
         self.encoder = mlp((n_in,) + ENCODER_WIDTHS, tanh_last=True) if encoder else nn.Identity()
-        width = ENCODER_WIDTHS[-1] if encoder else n_in
-        self.code_width = width + skip
+        self.code_width = width = ENCODER_WIDTHS[-1] if encoder else n_in
         if recurrent:
             self.core: nn.Module = WindowLSTM(width, lstm_units, dropout)
             self.head = mlp((2 * lstm_units,) + HEAD_WIDTHS + (n_out,), tanh_last=False)
@@ -115,19 +101,14 @@ class WindowNet(nn.Module):
             self.__dict__["bf16_core"] = copy.deepcopy(self.core).to(torch.bfloat16)
 
     def encode(self, frames: torch.Tensor) -> torch.Tensor:
-        """(..., n_in) normalised frame features -> (..., E) codes (``code_width``)."""
-        codes = self.encoder(frames)
-        return torch.cat([codes, frames[..., -self.skip :]], dim=-1) if self.skip else codes
+        """(..., n_in) normalised frame features -> (..., E) codes."""
+        return self.encoder(frames)
 
     def forward(self, windows: torch.Tensor) -> torch.Tensor:
         """(B, L, E) windows of codes -> (B, n_out)."""
-        if self.skip:
-            windows, passed = windows[..., : -self.skip], windows[:, windows.shape[1] // 2, -self.skip :]
         if self.bf16_core is not None and not self.training:
-            out = self.head(self.bf16_core(windows.to(torch.bfloat16)).float())
-        else:
-            out = self.head(self.core(windows))
-        return torch.cat([out[:, : self.skip] + passed, out[:, self.skip :]], dim=1) if self.skip else out
+            return self.head(self.bf16_core(windows.to(torch.bfloat16)).float())
+        return self.head(self.core(windows))
 
 
 def offsets_like(values: torch.Tensor) -> torch.Tensor:

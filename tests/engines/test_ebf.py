@@ -507,42 +507,6 @@ def test_take_context_variants_fit_clean_and_refuse_to_stream(tiny, context):
         engine.stream(tiny[1].skeleton, tiny[1].fps)
 
 
-def test_relative_width_corrects_the_takes_smoothing_width(tiny):
-    """With relative_width the network's log widths are added to the take's smoothing
-    context (kalman's log widths): a fresh network predicts about kalman's width, and the
-    passed widths reach the outputs one for one, at the window's centre frame only."""
-    from engines.ebf.nets import WindowNet
-
-    net = WindowNet(10, 5, encoder=True, recurrent=True, lstm_units=8, dropout=0.0, window=7, skip=3).eval()
-    frames = torch.randn(7, 10)
-    codes = net.encode(frames)[None]
-    assert codes.shape == (1, 7, net.code_width) and torch.equal(codes[0, :, -3:], frames[:, -3:])
-    moved = codes.clone()
-    moved[0, 3, -3:] += torch.tensor([1.0, 2.0, 3.0])
-    moved[0, 0, -3:] += 5.0  # not the centre: ignored
-    with torch.no_grad():
-        delta = net(moved) - net(codes)
-    torch.testing.assert_close(delta, torch.tensor([[1.0, 2.0, 3.0, 0.0, 0.0]]))
-
-    engine = registry.create(
-        "ebf:relative_width=true,smoothing_context=true,quadratic=true,epochs=1,lstm_units=8,batch_windows=64",
-        pretrained=False,
-    )
-    obs = parse_corruption("angular:0.5").apply(tiny[1], seed=0)
-    fresh = engine._build_net(Layout.of(tiny[1].skeleton).n_channels)
-    engine.norm_ = Normaliser.fit(tiny, Layout.of(tiny[1].skeleton))
-    data = engine._frame_data(obs)
-    with torch.no_grad():
-        z = fresh(fresh.encode(torch.from_numpy(data.inputs))[None, : 2 * RADIUS + 1])[0]
-    C = data.values.shape[1]
-    kalman_log_width = data.inputs[RADIUS, -C:]
-    assert np.abs(z[:C].numpy() - kalman_log_width).max() < 0.5
-    engine.fit(tiny[:1])
-    assert np.isfinite(engine.clean(obs).motion.channels).all()
-    with pytest.raises(EngineError, match="smoothing_context"):
-        registry.create("ebf:relative_width=true", pretrained=False)
-
-
 def test_positions_variant_also_trains_on_joint_position_noise(tiny):
     """Every clip gets a fourth training copy, with spatial noise: it moves the root too,
     which angular noise leaves alone."""
