@@ -34,6 +34,9 @@ overlapping blocks of frames (overlap-save): per frequency one L x L product ins
 subtracted explicitly, so the result is the window-by-window computation up to float32
 rounding. The solver keeps its (F, L) arrays channel-major (Fortran order): the FFT and
 the banded solves of its preconditioner then run along contiguous frames.
+
+With the smoothness term the conjugate gradients are preconditioned by a symmetric
+two-level cycle, a coarse grid of piecewise-linear motion inside (:func:`_cg_filter`).
 """
 
 from __future__ import annotations
@@ -128,6 +131,75 @@ class WindowProjector:
         return added
 
 
+class CoarseGrid:
+    """Piecewise-linear motion over ``n_frames`` frames, held at nodes every ``spacing``
+    frames (node i at frame i * spacing; ``n_nodes`` = ceil(F / spacing) + 1, the last
+    beyond the clip): the coarse space of :func:`robust_filter`'s two-level preconditioner.
+    ``prolong`` maps node values (L, n_nodes) to frames (F, L), channel-major; ``restrict``
+    is its transpose; :meth:`galerkin_band` gives the Galerkin product P^T X P of an
+    operator X on the frames as a lower band ``(u + 1, L, n_nodes)`` (entry [k, l, i] the
+    coupling of nodes i + k and i of channel l; 0 past the last node), for
+    ``cholesky_banded``. A 10-minute take's band is 25 MB, so Toeplitz operators are held
+    as their couplings (:meth:`toeplitz_coupling`) until then."""
+
+    def __init__(self, n_frames: int, spacing: int) -> None:
+        self.n_frames, self.spacing = n_frames, spacing
+        self.n_nodes = -(-n_frames // spacing) + 1
+        self.next_share = np.arange(spacing) / spacing  # frame i * spacing + s: the next node's share
+        self.own_share = 1.0 - self.next_share
+
+    def restrict(self, v: np.ndarray) -> np.ndarray:
+        """P^T v: (L, n_nodes) of v (F, L). Frame i * spacing + s counts towards node i by
+        ``own_share[s]`` and node i + 1 by ``next_share[s]``; summed over each s's frames in
+        turn, so no (F, L) temporary is made (a 10-minute take's are 40 MB)."""
+        frames = v.T  # (L, F): contiguous rows for channel-major v
+        nodes = np.zeros((v.shape[1], self.n_nodes))
+        for s in range(min(self.spacing, self.n_frames)):
+            at = frames[:, s :: self.spacing]
+            m = at.shape[1]
+            nodes[:, :m] += self.own_share[s] * at
+            nodes[:, 1 : m + 1] += self.next_share[s] * at
+        return nodes
+
+    def prolong(self, nodes: np.ndarray) -> np.ndarray:
+        """P x: (F, L), channel-major, of node values x (L, n_nodes)."""
+        frames = np.empty((nodes.shape[0], self.n_frames))
+        for s in range(min(self.spacing, self.n_frames)):
+            m = frames[:, s :: self.spacing].shape[1]
+            frames[:, s :: self.spacing] = self.own_share[s] * nodes[:, :m] + self.next_share[s] * nodes[:, 1 : m + 1]
+        return frames.T
+
+    def toeplitz_coupling(self, taps: np.ndarray) -> np.ndarray:
+        """(u + 1, L): entry [k, l] the coupling of nodes i and i + k in P^T T P, T the
+        symmetric Toeplitz operator of ``taps`` (2 D + 1, L) on channel l, (T v)_t = sum_o
+        taps[o + D] v_{t+o}, extended past the clip's ends (so positive semi-definite
+        where the taps' symbol is): sum_o taps(o) R(o - k spacing), R the autocorrelation
+        of a node's hat."""
+        r, D = self.spacing, (len(taps) - 1) // 2
+        hat = 1.0 - np.abs(np.arange(1 - r, r)) / r
+        R = np.correlate(hat, hat, "full")  # lags -(2 r - 2) .. 2 r - 2
+        u = (D + 2 * r - 2) // r
+        lags = np.arange(-D, D + 1)[None, :] - r * np.arange(u + 1)[:, None] + 2 * r - 2  # index into R
+        inside = (lags >= 0) & (lags < len(R))
+        return np.where(inside, R[np.clip(lags, 0, len(R) - 1)], 0.0) @ taps
+
+    def galerkin_band(self, coupling: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """P^T (diag(w) + T) P as a lower band (u + 1, L, n_nodes), u >= 1: w (F, L) per-
+        frame weights, T the Toeplitz operators of :meth:`toeplitz_coupling`'s ``coupling``."""
+        band = np.zeros((max(len(coupling), 2), w.shape[1], self.n_nodes))
+        band[: len(coupling)] = coupling[:, :, None]
+        weights = w.T
+        for s in range(min(self.spacing, self.n_frames)):
+            at = weights[:, s :: self.spacing]
+            m = at.shape[1]
+            band[0, :, :m] += self.own_share[s] ** 2 * at
+            band[0, :, 1 : m + 1] += self.next_share[s] ** 2 * at
+            band[1, :, :m] += self.own_share[s] * self.next_share[s] * at
+        for k in range(1, len(band)):
+            band[k, :, self.n_nodes - k :] = 0.0
+        return band
+
+
 @dataclass(frozen=True)
 class FilterResult:
     """z: filtered channels (F, L); reconstruction: the mean over the covering windows
@@ -167,7 +239,9 @@ def robust_filter(
     update ``IRLS_STEPS`` element-wise IRLS steps); "cg": every iteration fixes the IRLS
     weights w and minimises the resulting quadratic majoriser of J exactly over z (the
     coefficients c_s = E^T z_s are eliminated in closed form), i.e. solves
-    ``(W + 2 lambda (N - A)) z = W y`` by preconditioned conjugate gradients; the same
+    ``(W + 2 lambda (N - A)) z = W y`` by preconditioned conjugate gradients (to a
+    relative residual of ``CG_TOL``, at most ``CG_STEPS`` steps; the preconditioner in the
+    module docstring); the same
     objective, reached in far fewer filter applications when lambda n >> w (the
     alternating updates then crawl). ``smoothness`` mu (L,) adds the second-difference
     term of J (needs "cg"). ``refit_weight`` > 0 ("cg" only): once the iterations stop,
@@ -225,8 +299,13 @@ def robust_filter(
 
 
 #: conjugate-gradient iterations per quadratic solve, and their relative residual target
+#: (1e-3 with the two-level preconditioner: as near the minimum as 3e-4 got with the
+#: banded one alone, which seldom reached it; 3e-4 and 3e-3 scored worse on validation,
+#: ``docs/engines/mssa.md``, *Speed*)
 CG_STEPS = 80
-CG_TOL = 3e-4
+CG_TOL = 1e-3
+#: frames per node of the two-level preconditioner's coarse grid (:class:`CoarseGrid`)
+COARSE_FRAMES = 8
 
 
 def _inner(a: np.ndarray, b: np.ndarray) -> float:
@@ -251,34 +330,43 @@ def _cg_filter(
     y, alpha, z, projector, lam, mu, n, weights, data_cost, tol, max_iterations, F, p2, robust, refit_weight
 ):
     """``robust_filter`` with ``method="cg"`` (see there); ``data_cost`` includes the
-    smoothness term of weights ``mu`` (L,)."""
+    smoothness term of weights ``mu`` (L,).
+
+    With the smoothness term each solve is preconditioned by one symmetric two-level
+    cycle: B, a banded Cholesky solve of every channel (the data and smoothness terms
+    exact, the bases term by its diagonal), then a correction on a coarse grid of
+    piecewise-linear motion (:class:`CoarseGrid`, nodes every ``COARSE_FRAMES`` frames;
+    there the Galerkin product of the data and smoothness terms and of each channel's own
+    bases term), then B again. The bases term is a high-pass on each channel (near 0 for
+    periods above some 16 frames, 2 lambda n for short ones), so B alone charges the
+    smooth motion the bases keep some 30 times the data weight, and CG crawled on it,
+    stopping at ``CG_STEPS`` short of the tolerance; the coarse grid holds that motion. A
+    step costs three filter applications instead of one and converges in far fewer (the
+    10-minute take's first 12,000 frames: 41 steps instead of 222, ``docs/engines/mssa.md``,
+    *A coarse grid in the preconditioner*). Without the smoothness term: B's diagonal."""
     M = projector.window
     g0 = np.diag(projector.taps[M - 1]) / M  # diagonal of A / n
     costs: list[float] = []
     iterations = 0
     costs.append(data_cost(z) + lam * projector(z)[1])
-    smoothed = mu.any()  # the smoothness term: a banded preconditioner
+    smoothed = mu.any()  # the smoothness term: a two-level preconditioner
+    if smoothed:
+        grid = CoarseGrid(len(y), COARSE_FRAMES)
+        bases_taps = -np.diagonal(projector.taps, axis1=1, axis2=2)  # each channel's own n - a, (2 M - 1, L)
+        bases_taps[M - 1] += M
+        bases_coupling = grid.toeplitz_coupling(bases_taps)
+        smooth_coupling = np.zeros_like(bases_coupling)  # D2'D2's band is narrower
+        smooth_coupling[:3] = grid.toeplitz_coupling(np.outer([1.0, -4.0, 6.0, -4.0, 1.0], 2.0 * mu))
+    # the bases term's share of the diagonal; the cycle's smoother B needs 2 B - A positive
+    # definite, so there at least half (channels the bases hold almost whole have g0 near 1)
+    share = np.maximum(1.0 - g0, 0.5) if smoothed else 1.0 - g0
 
     # The (F, L) arrays below (40 MB each on a 10-minute take) are channel-major and
     # updated in place where they can be.
     def solve(z, w, lam):
         """Minimise the quadratic with data weights ``w`` and bases weight ``lam``: PCG
         from ``z`` to a relative residual of ``CG_TOL`` (at most ``CG_STEPS`` steps)."""
-        diagonal = w + 2.0 * lam * n * (1.0 - g0) + 1e-12
-        if not smoothed:
-
-            def precond(v):
-                return v / diagonal
-        else:  # exact for the data and smoothness terms: banded Cholesky of every channel
-            ab = second_difference_band(len(y))[:, None, :] * (2.0 * mu)[None, :, None]  # (3, L, F)
-            ab[0] += diagonal.T
-            factor = cholesky_banded(ab.reshape(3, -1), overwrite_ab=True, lower=True, check_finite=False)
-            del ab
-
-            def precond(v):
-                x = cho_solve_banded((factor, True), v.T.reshape(-1), check_finite=False)
-                return x.reshape(v.shape[1], v.shape[0]).T
-
+        diagonal = w + 2.0 * lam * n * share + 1e-12
         data_and_coverage = w + 2.0 * lam * n
 
         def apply(v):  # w v + 2 lam (n v - a(v)) + 2 mu D2'D2 v
@@ -291,6 +379,41 @@ def _cg_filter(
             smooth *= 2.0 * mu
             out += smooth
             return out
+
+        if not smoothed:
+
+            def precond(v):
+                return v / diagonal
+        else:
+            # B: exact for the data and smoothness terms, the bases term by its diagonal
+            # (banded Cholesky of every channel); it overcharges the smooth motion the bases
+            # keep, which the coarse grid's C = P^T (W + 2 lam T + 2 mu D2'D2) P holds, T
+            # each channel's own bases term. One symmetric two-level cycle: B, C, B.
+            ab = second_difference_band(len(y))[:, None, :] * (2.0 * mu)[None, :, None]  # (3, L, F)
+            ab[0] += diagonal.T
+            factor = cholesky_banded(ab.reshape(3, -1), overwrite_ab=True, lower=True, check_finite=False)
+            del ab
+            coarse = grid.galerkin_band(2.0 * lam * bases_coupling + smooth_coupling, w)
+            coarse_factor = cholesky_banded(
+                coarse.reshape(len(coarse), -1), overwrite_ab=True, lower=True, check_finite=False
+            )
+            del coarse
+
+            def fine(v, overwrite=False):  # overwrite: the solution in v's memory
+                x = cho_solve_banded((factor, True), v.T.reshape(-1), overwrite_b=overwrite, check_finite=False)
+                return x.reshape(v.shape[1], v.shape[0]).T
+
+            def precond(v):  # the residual left after each stage in place: 40 MB a copy
+                x = fine(v)
+                left = apply(x)
+                np.subtract(v, left, out=left)
+                nodes = cho_solve_banded((coarse_factor, True), grid.restrict(left).reshape(-1), check_finite=False)
+                del left
+                x += grid.prolong(nodes.reshape(v.shape[1], -1))
+                left = apply(x)
+                np.subtract(v, left, out=left)
+                x += fine(left, overwrite=True)
+                return x
 
         z = z.copy(order="F")
         r = w * y - apply(z)
