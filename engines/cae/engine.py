@@ -337,8 +337,9 @@ class ConvAutoencoderEngine(Engine):
         ------
         EngineError
             Files :func:`~workbench.engine.weights.load_weights` refuses, weights of another
-            engine, or with another value of a trained parameter (``input_fill``,
-            ``universal``, the network's widths), image layout, network rate or shape.
+            engine or another version of it (parameters it lacks), or with another value of
+            a trained parameter (``input_fill``, ``universal``, the network's widths), image
+            layout, network rate or shape.
         """
         from workbench.engine.torch_support import load_module_arrays
         from workbench.engine.weights import load_weights
@@ -350,10 +351,14 @@ class ConvAutoencoderEngine(Engine):
             np.array_equal(arrays.get(f"layout.{k}"), getattr(layout, k)) for k in ("joints", "source", "parents")
         )
         saved, default = dict(manifest.get("params") or {}), self.Params()
-        trained_with = {k: saved.get(k, getattr(default, k)) for k, r in param_roles(default).items() if r == TRAINED}
+        roles = param_roles(default)
+        trained_with = {k: saved.get(k, getattr(default, k)) for k, r in roles.items() if r == TRAINED}
         differ = {k: v for k, v in trained_with.items() if v != getattr(self.params, k)}
+        unknown = sorted(set(saved) - set(roles))
         if manifest.get("engine") != self.info.name:
             problem = f"they are weights of engine {manifest.get('engine')!r}"
+        elif unknown:
+            problem = f"they record parameters this engine lacks ({', '.join(unknown)}): from another version of it"
         elif differ:
             problem = "they were trained with " + ", ".join(
                 f"{k}={v} (asked: {getattr(self.params, k)})" for k, v in differ.items()

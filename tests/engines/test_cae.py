@@ -205,11 +205,12 @@ def test_fit_save_load_round_trip(tiny_fit, tmp_path, walk):
 def test_training_goes_on_from_given_weights_and_refuses_weights_that_do_not_fit(tiny_fit, tmp_path):
     """``init_weights``: the network and image units of the named weights, trained further
     (at a learning rate of ~0 they come back as they were, where a fresh network does
-    not); weights of another engine, skeleton or trained parameter, or none, refused with
-    what to do."""
+    not); weights of another engine, version, skeleton or trained parameter, or none,
+    refused with what to do."""
     import json
 
     from workbench.engine.torch_support import module_arrays
+    from workbench.engine.weights import signed
 
     engine, motions = tiny_fit
     start = json.loads(engine.save(tmp_path / "start").read_text())
@@ -227,7 +228,13 @@ def test_training_goes_on_from_given_weights_and_refuses_weights_that_do_not_fit
     assert CAE().load(tmp_path / "on").training_record()["started_from"] == saved
     assert "started_from" not in fresh.training_record()
     committed = CAE().default_weights_dir().parent
+    newer = tmp_path / "newer"  # weights of a version with a parameter this one lacks
+    newer.mkdir()
+    (newer / "weights.npz").write_bytes((tmp_path / "start" / "weights.npz").read_bytes())
+    newer_manifest = signed({**start, "params": {**start["params"], "hole_loss_weight": 3.0}})
+    (newer / "manifest.json").write_text(json.dumps(newer_manifest))
     refusals = [
+        (newer, {}, r"parameters this engine lacks \(hole_loss_weight\)"),
         (tmp_path / "none", {}, "no weights manifest here"),
         (committed / "cae-vanilla" / "cmu", {}, "weights of engine 'cae-vanilla'"),
         (committed / "cae-universal" / "cmu+bandai", {}, "trained with universal=True"),
