@@ -354,9 +354,11 @@ def _cg_filter(
         grid = CoarseGrid(len(y), COARSE_FRAMES)
         bases_taps = -np.diagonal(projector.taps, axis1=1, axis2=2)  # each channel's own n - a, (2 M - 1, L)
         bases_taps[M - 1] += M
-        bases_coupling = grid.toeplitz_coupling(bases_taps)
-        smooth_coupling = np.zeros_like(bases_coupling)  # D2'D2's band is narrower
-        smooth_coupling[:3] = grid.toeplitz_coupling(np.outer([1.0, -4.0, 6.0, -4.0, 1.0], 2.0 * mu))
+        bases = grid.toeplitz_coupling(bases_taps)
+        smooth = grid.toeplitz_coupling(np.outer([1.0, -4.0, 6.0, -4.0, 1.0], 2.0 * mu))
+        bases_coupling, smooth_coupling = (  # one height: the bands differ with the window
+            np.pad(c, ((0, max(len(bases), len(smooth)) - len(c)), (0, 0))) for c in (bases, smooth)
+        )
     # the bases term's share of the diagonal; the cycle's smoother B needs 2 B - A positive
     # definite, so there at least half (channels the bases hold almost whole have g0 near 1)
     share = np.maximum(1.0 - g0, 0.5) if smoothed else 1.0 - g0

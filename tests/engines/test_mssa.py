@@ -420,3 +420,21 @@ def test_conjugate_gradients_reach_their_tolerance_on_a_noisy_take_with_gaps(wal
     z, n = res.z, coverage(len(u), model.projector.window)[:, None]
     A_z = alpha * z + 6.0 * (n * z - model.projector.added(z)) + 2.0 * mu * second_difference_gram(z)
     assert np.linalg.norm(alpha * u - A_z) <= 1.01 * CG_TOL * np.linalg.norm(alpha * u)
+
+
+@pytest.mark.parametrize("window", [2, 3, 20])
+def test_smoothed_solves_run_for_any_window(window):
+    # the coarse grid's bands are as high as the window's bases term or the smoothness
+    # term needs, whichever is higher
+    rng = np.random.default_rng(window)
+    L, F = 3, 300
+    E = np.linalg.qr(rng.normal(size=(L * window, L * window // 2 + 1)))[0]
+    projector = WindowProjector(E, window)
+    u = np.cumsum(rng.normal(size=(F, L)), axis=0) * 0.1 + rng.normal(0.0, 0.2, (F, L))
+    seen = rng.random((F, L)) > 0.1
+    alpha, mu = seen / 0.2**2, np.full(L, 20.0)
+    z = robust_filter(u, alpha, projector, 3.0, 1.0, robust=False, method="cg", smoothness=mu).z
+    A_z = (
+        alpha * z + 6.0 * (coverage(F, window)[:, None] * z - projector.added(z)) + 2.0 * mu * second_difference_gram(z)
+    )
+    assert np.linalg.norm(alpha * u - A_z) <= 1.01 * CG_TOL * np.linalg.norm(alpha * u)
