@@ -351,10 +351,9 @@ class ConvAutoencoderEngine(Engine):
             np.array_equal(arrays.get(f"layout.{k}"), getattr(layout, k)) for k in ("joints", "source", "parents")
         )
         saved, default = dict(manifest.get("params") or {}), self.Params()
-        roles = param_roles(default)
-        trained_with = {k: saved.get(k, getattr(default, k)) for k, r in roles.items() if r == TRAINED}
+        trained_with = {k: saved.get(k, getattr(default, k)) for k, r in param_roles(default).items() if r == TRAINED}
         differ = {k: v for k, v in trained_with.items() if v != getattr(self.params, k)}
-        unknown = sorted(set(saved) - set(roles))
+        unknown = self.unknown_params(manifest)
         if manifest.get("engine") != self.info.name:
             problem = f"they are weights of engine {manifest.get('engine')!r}"
         elif unknown:

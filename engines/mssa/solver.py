@@ -240,8 +240,8 @@ def robust_filter(
     weights w and minimises the resulting quadratic majoriser of J exactly over z (the
     coefficients c_s = E^T z_s are eliminated in closed form), i.e. solves
     ``(W + 2 lambda (N - A)) z = W y`` by preconditioned conjugate gradients (to a
-    relative residual of ``CG_TOL``, at most ``CG_STEPS`` steps; the preconditioner in the
-    module docstring); the same
+    relative residual of ``CG_TOL``, at most ``CG_STEPS`` steps; the preconditioner:
+    :func:`_cg_filter`); the same
     objective, reached in far fewer filter applications when lambda n >> w (the
     alternating updates then crawl). ``smoothness`` mu (L,) adds the second-difference
     term of J (needs "cg"). ``refit_weight`` > 0 ("cg" only): once the iterations stop,

@@ -788,8 +788,7 @@ class Engine:
         """
         default, saved = self.Params(), dict(manifest.get("params") or {})
         roles = param_roles(default)
-        unknown = sorted(set(saved) - set(roles))
-        if unknown:
+        if unknown := self.unknown_params(manifest):
             raise EngineError(
                 f"{folder}: these weights record parameters engine {self.info.name!r} does not have "
                 f"({', '.join(unknown)}): they are from another version of it; retrain them"
@@ -803,6 +802,11 @@ class Engine:
                 f"(`workbench train SPEC --out FOLDER`, then add {WEIGHTS_OPTION}=FOLDER to the spec)"
             )
         return dataclasses.replace(self.params, **fixed)
+
+    def unknown_params(self, manifest: Mapping) -> list[str]:
+        """The parameters a weights ``manifest`` records that this engine lacks, sorted:
+        weights from another version of it where any."""
+        return sorted(set(manifest.get("params") or {}) - set(param_roles(self.Params)))
 
     @property
     def variant(self) -> str:
