@@ -137,6 +137,10 @@ class FilterEngine(WindowEngine):
         return net
 
     def _predict(self, net, windows, values, valid, trig=None):
+        return self._filter(net(windows), values, valid, trig)
+
+    def _filter(self, z, values, valid, trig=None):
+        """:meth:`_predict` from the network's outputs ``z`` (B, n_out) for the windows."""
         import torch
 
         from .nets import (
@@ -150,7 +154,7 @@ class FilterEngine(WindowEngine):
         )
 
         B, L, C = values.shape
-        z = net(windows).to(values.dtype)
+        z = z.to(values.dtype)
         offsets = offsets_like(values)
         if self.free:
             out, weights = filter_windows(z[:, : L * C].reshape(B, L, C), values, valid, trig)

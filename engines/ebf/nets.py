@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 from typing import NamedTuple
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -62,6 +63,78 @@ class WindowLSTM(nn.Module):
         return torch.cat([f[:, -1], b[:, -1]], dim=1)
 
 
+#: an LSTM layer's weights as ``torch.lstm`` takes them: W_ih (4H, n_in), W_hh (4H, H),
+#: b_ih (4H,), b_hh (4H,), gates in PyTorch's order (input, forget, cell, output)
+LSTMWeights = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
+
+
+def _lstm_weights(lstm: nn.LSTM, suffix: str = "") -> LSTMWeights:
+    """The weights of ``lstm``'s first layer (``suffix`` "_reverse": of its backward direction)."""
+    names = ("weight_ih_l0", "weight_hh_l0", "bias_ih_l0", "bias_hh_l0")
+    return tuple(getattr(lstm, name + suffix).detach() for name in names)  # type: ignore[return-value]
+
+
+def _paired_weights(first: LSTMWeights, second: LSTMWeights, columns: tuple[list[int], list[int]], n_in: int):
+    """The weights of one LSTM of twice the width that runs two single-layer LSTMs of
+    width H side by side: its units are ``first``'s then ``second``'s, each gate's
+    weights block-diagonal (no unit reads the other's state). It reads inputs of ``n_in``
+    columns, of which ``columns[0]`` (in order) are ``first``'s input, ``columns[1]``
+    ``second``'s."""
+    H = first[1].shape[1]
+    W_ih, W_hh = first[0].new_zeros(8 * H, n_in), first[0].new_zeros(8 * H, 2 * H)
+    b_ih, b_hh = first[0].new_zeros(8 * H), first[0].new_zeros(8 * H)
+    for (w_ih, w_hh, bias_ih, bias_hh), cols, units in zip((first, second), columns, (slice(0, H), slice(H, 2 * H))):
+        for gate in range(4):
+            rows, source = slice(2 * gate * H + units.start, 2 * gate * H + units.stop), slice(gate * H, (gate + 1) * H)
+            W_ih[rows, cols], W_hh[rows, units] = w_ih[source], w_hh[source]
+            b_ih[rows], b_hh[rows] = bias_ih[source], bias_hh[source]
+    return W_ih, W_hh, b_ih, b_hh
+
+
+def _run_lstm(inputs: torch.Tensor, weights: LSTMWeights) -> torch.Tensor:
+    """(B, T, H) outputs of a single-layer LSTM of ``weights`` over ``inputs`` (B, T,
+    n_in), from a zero state."""
+    zero = inputs.new_zeros(1, inputs.shape[0], weights[1].shape[1])
+    return torch.lstm(inputs, (zero, zero), weights, True, 1, 0.0, False, False, True)[0]
+
+
+class OneWindowLSTM:
+    """:class:`WindowLSTM`'s function for one window at a time, as a stream calls it, in
+    two LSTM calls instead of four (equal to it to rounding): on a CPU a call costs some
+    50 us before its first step (oneDNN sets the layer up) and about 1 us a step at a
+    batch of one, so the calls, not the 94 steps, were most of the B-LSTM's time. Each
+    layer's two directions run as one LSTM of twice the width (:func:`_paired_weights`):
+    the first over the window and its mirror image side by side, the second over the
+    first's output beside its own mirror image, whose row k holds every input both
+    directions of the second layer read at their step k. Built from a core in eval
+    mode; runs in its dtype."""
+
+    def __init__(self, core: WindowLSTM) -> None:
+        E, H = core.layer1.input_size, core.layer1.hidden_size
+        self.dtype = core.layer1.weight_ih_l0.dtype
+        self.layer1 = _paired_weights(
+            _lstm_weights(core.layer1), _lstm_weights(core.layer1, "_reverse"), (_span(0, E), _span(E, 2 * E)), 2 * E
+        )
+        # the first layer's output row t is (forward state at frame t, backward state at
+        # frame L-1-t); beside its mirror image, row k is (fw k, bw L-1-k, fw L-1-k, bw k):
+        # the second layer's forward direction reads frame k, its backward one frame L-1-k
+        columns = (_span(0, H) + _span(3 * H, 4 * H), _span(2 * H, 3 * H) + _span(H, 2 * H))
+        self.layer2 = _paired_weights(_lstm_weights(core.forward2), _lstm_weights(core.backward2), columns, 4 * H)
+
+    def __call__(self, window: np.ndarray) -> np.ndarray:
+        """(L, E) float32 window of codes -> (2H,) float32 state at its centre frame."""
+        r = window.shape[0] // 2
+        with torch.inference_mode():
+            x = torch.from_numpy(window)[None].to(self.dtype)
+            y = _run_lstm(torch.cat([x, x.flip(1)], dim=2), self.layer1)
+            state = _run_lstm(torch.cat([y, y.flip(1)], dim=2)[:, : r + 1], self.layer2)[0, -1]
+        return state.float().numpy()
+
+
+def _span(start: int, stop: int) -> list[int]:
+    return list(range(start, stop))
+
+
 class WindowNet(nn.Module):
     """Per-frame encoder (or none), then a window core, then a head giving ``n_out``
     numbers per window.
@@ -100,6 +173,11 @@ class WindowNet(nn.Module):
         if isinstance(self.core, WindowLSTM):
             self.__dict__["bf16_core"] = copy.deepcopy(self.core).to(torch.bfloat16)
 
+    def one_window(self) -> "OneWindowNet":
+        """This network for one frame and window at a time (:class:`OneWindowNet`); make
+        it when the weights are final."""
+        return OneWindowNet(self)
+
     def encode(self, frames: torch.Tensor) -> torch.Tensor:
         """(..., n_in) normalised frame features -> (..., E) codes."""
         return self.encoder(frames)
@@ -109,6 +187,49 @@ class WindowNet(nn.Module):
         if self.bf16_core is not None and not self.training:
             return self.head(self.bf16_core(windows.to(torch.bfloat16)).float())
         return self.head(self.core(windows))
+
+
+class NumpyMLP:
+    """An :func:`mlp`'s function (its ``nn.Sequential`` of linear and tanh layers) in
+    numpy float32, on one input (n_in,) at a time: at that size torch's dispatch of its
+    seven or eight modules took four times as long (some 33 us against 7)."""
+
+    def __init__(self, layers: nn.Module) -> None:
+        self.layers: list[tuple[np.ndarray, np.ndarray, bool]] = []
+        for layer in layers.children():  # (none for an nn.Identity: the input as it is)
+            if isinstance(layer, nn.Linear):
+                weight, bias = (t.detach().float().numpy() for t in (layer.weight, layer.bias))
+                self.layers.append((np.ascontiguousarray(weight.T), bias.copy(), False))
+            elif isinstance(layer, nn.Tanh):
+                self.layers[-1] = self.layers[-1][:2] + (True,)
+            else:
+                raise TypeError(f"not an mlp layer: {layer}")
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, np.float32)
+        for weight, bias, tanh in self.layers:
+            x = x @ weight
+            x += bias
+            if tanh:
+                np.tanh(x, out=x)
+        return x
+
+
+class OneWindowNet:
+    """A :class:`WindowNet`'s function for one frame and one window at a time (a
+    stream's), in eval mode, equal to it to rounding: the B-LSTM as
+    :class:`OneWindowLSTM` (in the dtype the network runs it in), the encoder and the
+    head as :class:`NumpyMLP`."""
+
+    def __init__(self, net: WindowNet) -> None:
+        core = net.bf16_core if net.bf16_core is not None else net.core
+        self.lstm = OneWindowLSTM(core) if isinstance(core, WindowLSTM) else None
+        self.encode = NumpyMLP(net.encoder)
+        self.head = NumpyMLP(net.head)
+
+    def __call__(self, window: np.ndarray) -> np.ndarray:
+        """(L, E) float32 window of codes -> (n_out,) outputs."""
+        return self.head(window.reshape(-1) if self.lstm is None else self.lstm(window))  # NN: the window flattened
 
 
 def offsets_like(values: torch.Tensor) -> torch.Tensor:

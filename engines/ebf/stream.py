@@ -86,6 +86,7 @@ class FilterStream:
                 f"not {fps:g}; clean the take offline (`workbench clean`), which resamples it"
             )
         self.engine = engine
+        self.net = engine.net_.one_window()
         self.layout = Layout.of(body)
         self.fps = float(fps)
         self.width = channel_count(skeleton)
@@ -135,8 +136,6 @@ class FilterStream:
             return self._push(frame)
 
     def _push(self, frame: np.ndarray) -> np.ndarray | None:
-        import torch
-
         raw = np.array(frame, dtype=float).reshape(-1)
         if raw.size != self.width or not np.isfinite(raw).all():
             raise EngineError(f"stream frames must be {self.width} finite channel values (no gaps)")
@@ -152,9 +151,7 @@ class FilterStream:
         )
         if self.engine.params.root_sigma_frames > 0 and len(self._recent) >= 3:  # the previous frame's roughness
             self._window.last()["rough"][:] = roughness(np.stack(list(self._recent)[-3:]), self.unit_cm)[0]
-        features = self.engine.norm_(np.concatenate([values, velocity]))
-        with torch.inference_mode():
-            code = self.engine.net_.encode(torch.from_numpy(features.astype(np.float32))[None])[0].numpy()
+        code = self.net.encode(self.engine.norm_(np.concatenate([values, velocity])))
         frame_fields = dict(code=code, values=values, root=root, rough=np.nan)
         if len(self._recent) == 1:
             for _ in range(RADIUS):  # the first frame repeated before the take
@@ -182,9 +179,8 @@ class FilterStream:
 
         w = self._window.arrays
         with torch.inference_mode():
-            pred, _ = self.engine._predict(
-                self.engine.net_,
-                torch.from_numpy(w["code"])[None],
+            pred, _ = self.engine._filter(
+                torch.from_numpy(self.net(w["code"]))[None],
                 torch.from_numpy(w["values"])[None],
                 torch.from_numpy(w["valid"])[None],
             )

@@ -22,6 +22,7 @@ from engines.ebf.features import (  # noqa: E402
 )
 from engines.ebf.nets import (  # noqa: E402
     Trig,
+    WindowNet,
     circular_mean,
     filter_windows,
     gaussian_filter,
@@ -144,6 +145,26 @@ def test_local_quadratic_weights_fall_back_to_the_gaussian_where_a_fit_is_ill_po
     sigma = torch.full((5, 4), 1e-3, dtype=torch.float64)  # one frame carries all the weight
     gaussian = torch.softmax(gaussian_logits(sigma, offsets), dim=1)
     assert torch.equal(local_quadratic_weights(sigma, offsets, valid), gaussian)
+
+
+@pytest.mark.parametrize("encoder, recurrent", [(True, True), (False, True), (False, False)], ids=["ebf", "bf", "nn"])
+def test_the_one_window_network_is_the_network(encoder, recurrent):
+    """What a stream runs (the B-LSTM's directions paired into two calls, the encoder
+    and head in numpy) equals the network on a batch, in float32 and with its core in
+    bf16 (there, one bf16 step of the state apart at most)."""
+    torch.manual_seed(0)
+    net = WindowNet(7, 5, encoder=encoder, recurrent=recurrent, lstm_units=6, dropout=0.5, window=L).eval()
+    frames = torch.randn(40, 7)
+    with torch.inference_mode():
+        codes = net.encode(frames)
+        windows = codes.unfold(0, L, 1).permute(0, 2, 1).contiguous()  # (10, L, E)
+        one = net.one_window()
+        assert np.abs(np.stack([one.encode(f) for f in frames.numpy()]) - codes.numpy()).max() < 1e-6
+        assert np.abs(np.stack([one(w) for w in windows.numpy()]) - net(windows).numpy()).max() < 1e-5
+        if recurrent:
+            net.run_core_in_bf16()
+            one = net.one_window()
+            assert np.abs(np.stack([one(w) for w in windows.numpy()]) - net(windows).numpy()).max() < 0.02
 
 
 def test_window_index_repeats_edges_and_marks_missing_frames():
@@ -275,6 +296,15 @@ def test_a_take_on_a_reference_node_streams_in_its_body_view(ebf_float32, studio
     out = np.array(out + list(stream.flush()))
     assert np.abs(out - ebf_float32.clean(obs).motion.channels).max() < 1e-4
     assert np.array_equal(out[:, :6], obs.motion.channels[:, :6])  # joint_Root: position and angles
+
+
+@pytest.mark.parametrize("name", ["bf:bf16=false", "nn"])
+def test_the_ablations_stream_as_they_clean(name, walk):
+    obs = parse_corruption("angular:0.5").apply(walk, seed=3)
+    engine = registry.create(name)
+    stream = engine.stream(walk.skeleton, walk.fps)
+    out = [row for frame in obs.motion.channels if (row := stream.push(frame)) is not None]
+    assert np.abs(np.array(out + list(stream.flush())) - engine.clean(obs).motion.channels).max() < 1e-4
 
 
 def test_stream_of_a_take_shorter_than_the_window(ebf_float32, walk):
