@@ -3,9 +3,10 @@
 take, because both evaluate exactly the same 31-frame window per output frame with the
 same edge padding (the first frame repeated before the take, the last after it), and
 unwrap the angles by the same causal rule. The root's filter (:mod:`.root`) also sees
-only the window. Where the B-LSTM runs in bf16 (the engines' ``bf16``, on by default on
-CPUs that run it natively), its kernels for one window and for a batch of them round
-differently: the two then agree to within hundredths of a degree (0.044 at most on 8 CMU
+only the window. The network runs as :class:`.nets.OneWindowNet`, its form for one
+window at a time (the same function in fewer, cheaper calls). Where the B-LSTM runs in
+bf16 (the engines' ``bf16``, on by default on CPUs that run it natively), its kernels
+for one window and for a batch of them round differently: the two then agree to within hundredths of a degree (0.044 at most on 8 CMU
 takes under ``angular:0.5``, ``angular:1`` and ``spatial:1``, 0.030 on 6 Bandai takes);
 with ``bf16=false``, to float precision.
 
