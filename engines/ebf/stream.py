@@ -6,9 +6,10 @@ unwrap the angles by the same causal rule. The root's filter (:mod:`.root`) also
 only the window. The network runs as :class:`.nets.OneWindowNet`, its form for one
 window at a time (the same function in fewer, cheaper calls). Where the B-LSTM runs in
 bf16 (the engines' ``bf16``, on by default on CPUs that run it natively), its kernels
-for one window and for a batch of them round differently: the two then agree to within hundredths of a degree (0.044 at most on 8 CMU
-takes under ``angular:0.5``, ``angular:1`` and ``spatial:1``, 0.030 on 6 Bandai takes);
-with ``bf16=false``, to float precision.
+for one window and for a batch of them round differently: the two then agree to within
+hundredths of a degree (0.044 at most on 8 CMU takes under ``angular:0.5``,
+``angular:1`` and ``spatial:1``, 0.030 on 6 Bandai takes); with ``bf16=false``, to float
+precision.
 
 >>> stream = engine.stream(motion.skeleton, motion.fps)
 >>> out = [row for f in motion.channels if (row := stream.push(f)) is not None]
