@@ -66,6 +66,7 @@ def test_clean_treats_nan_as_missing(tmp_path, walk):
         (["clean", "{bad}", "-o", "{tmp}/o.bvh", "--engine", "identity"], "truncated"),
         (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "nope"], "unknown engine"),
         (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),
+        (["clean", "{good}", "-o", "{tmp}/o.amc", "--engine", "identity"], "the .bvh suffix"),
         (["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--data", "{tmp}/none"], "not a folder"),
     ],
 )
@@ -78,6 +79,26 @@ def test_user_errors_are_one_line_and_leave_no_output(args, needle, tmp_path, da
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err and err.count("\n") <= 3
     assert not (tmp_path / "o.bvh").exists()
+
+
+@pytest.mark.parametrize(
+    "missing", [{"Hips": [None]}, {"Hips": [["a", "b"]]}, {"Hips": [[1.5, 3.0]]}, {"Hips": [[True, 3]]}, ["Hips"]]
+)
+def test_a_malformed_mask_is_one_line(missing, tmp_path, walk, capsys):
+    from workbench.io import write_bvh
+
+    take = tmp_path / "t.bvh"
+    write_bvh(take, walk)
+    mask = {"format": "mocap-workbench observed mask v1", "frames": walk.n_frames, "missing": missing}
+    (tmp_path / "m.json").write_text(json.dumps(mask))
+    assert (
+        main(
+            ["clean", str(take), "-o", str(tmp_path / "o.bvh"), "--engine", "lerp", "--mask", str(tmp_path / "m.json")]
+        )
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert "m.json" in err and "span" in err and "Traceback" not in err and err.count("\n") == 1
 
 
 @pytest.mark.usefixtures("data_root")
@@ -476,7 +497,16 @@ def test_clean_never_overwrites_its_input_unless_told_and_then_keeps_the_raw_tak
     take.write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
     raw = take.read_bytes()
     assert main(["clean", str(take), "-o", str(take), "--engine", "lerp"]) == 2
-    assert "would overwrite the raw take" in capsys.readouterr().err and take.read_bytes() == raw
+    assert "is the input take: writing it would overwrite" in capsys.readouterr().err and take.read_bytes() == raw
+    assert main(["corrupt", str(take), "-o", str(take), "--corrupt", "angular:0.5"]) == 2
+    assert "is the input take" in capsys.readouterr().err and take.read_bytes() == raw
+    assert main(["corrupt", str(take), "-o", str(tmp_path / "noisy.bvh"), "--corrupt", "gaps:0.01"]) == 0
+    mask = (tmp_path / "noisy.bvh.mask.json").read_bytes()
+    assert (
+        main(["clean", str(tmp_path / "noisy.bvh"), "-o", str(tmp_path / "noisy.bvh.mask.json"), "--engine", "lerp"])
+        == 2
+    )
+    assert "is the mask of" in capsys.readouterr().err and (tmp_path / "noisy.bvh.mask.json").read_bytes() == mask
     assert main(["clean", str(take), "--engine", "lerp"]) == 2
     assert "-o" in capsys.readouterr().err
     assert main(["clean", str(take), "--in-place", "--engine", "gaussian"]) == 0
@@ -487,6 +517,10 @@ def test_clean_never_overwrites_its_input_unless_told_and_then_keeps_the_raw_tak
     assert backup.read_bytes() == raw, "a second in-place clean keeps the first backup: the raw take"
     assert take.read_bytes() != once
     assert main(["clean", str(tmp_path), "--in-place", "--engine", "lerp"]) == 2
+    broken = tmp_path / "broken.bvh"
+    broken.write_bytes(raw[: len(raw) // 2])
+    assert main(["clean", str(broken), "--in-place", "--engine", "gaussian"]) == 2
+    assert not (tmp_path / "broken.bvh.orig").exists(), "a failed in-place clean leaves no backup to mislead the next"
 
 
 def test_a_pipeline_says_which_weights_its_stages_used(tmp_path, data_root, capsys):

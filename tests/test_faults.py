@@ -105,8 +105,28 @@ def test_an_output_that_is_the_input_by_another_name_is_refused(tmp_path, take, 
     (tmp_path / "soft.bvh").symlink_to(take)
     for other in ("hard.bvh", "soft.bvh"):
         assert main(["clean", str(take), "-o", str(tmp_path / other), "--engine", "lerp"]) == 2
-        assert "would overwrite the raw take" in capsys.readouterr().err
+        assert "is the input take: writing it would overwrite" in capsys.readouterr().err
     assert take.read_bytes() == raw
+
+
+def test_a_corrupted_take_and_its_mask_are_written_both_or_neither(tmp_path, take, capsys, monkeypatch):
+    """A mask that cannot be written (here: a full disk, simulated) leaves the earlier take
+    and mask as they were: never a new take beside an old mask, or beside none."""
+    import errno
+
+    import workbench.io.mask
+
+    out = tmp_path / "noisy.bvh"
+    assert main(["corrupt", str(take), "-o", str(out), "--corrupt", "gaps:0.01", "--seed", "2"]) == 0
+    before = snapshot(tmp_path)
+
+    def full_disk(path, *args):
+        raise OutputFileError(path, OSError(errno.ENOSPC, "No space left on device"))
+
+    monkeypatch.setattr(workbench.io.mask, "write_mask", full_disk)
+    assert main(["corrupt", str(take), "-o", str(out), "--corrupt", "gaps:0.01", "--seed", "1"]) == 2
+    assert "No space left on device" in capsys.readouterr().err
+    assert snapshot(tmp_path) == before
 
 
 def test_a_folder_clean_onto_a_full_disk_reports_each_take_and_keeps_the_rest(tmp_path, take, capsys):

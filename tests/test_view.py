@@ -159,3 +159,11 @@ def test_a_joint_is_missing_where_any_of_its_channels_is_nan(walk, stretchy_take
         assert np.array_equal(joint_any(holes, take.skeleton), expected)
         channels[holes] = np.nan
         assert np.array_equal(Observation(take.with_channels(channels)).observed, ~expected)
+
+
+def test_a_take_whose_frame_time_is_far_off_is_not_resampled_into_the_memory():
+    from workbench.engine.view import frame_times
+
+    assert frame_times(300, 30.0, 120.0).size == 1197
+    with pytest.raises(EngineError, match=r"Frame Time \(1000 s\) is wrong"):
+        frame_times(300, 0.001, 120.0)

@@ -216,21 +216,40 @@ def _measure_inspection(args) -> int:
     return 0
 
 
+def _check_bvh_output(output: Path) -> None:
+    """Raise UserError unless ``output`` names a BVH file (what the commands write)."""
+    if output.suffix.lower() != ".bvh":
+        raise UserError(f"-o {output}: the take is written as BVH; name the file with the .bvh suffix")
+
+
+def _refuse_overwriting(output: Path, take: Path, mask: Path, hint: str) -> None:
+    """Raise UserError where the file ``output`` is the input ``take`` or its ``mask``
+    (the one it is read with, or its sidecar): writing it would lose the user's data."""
+    for path, what in ((take, "the input take"), (mask, f"the mask of {take}")):
+        if output.resolve() == path.resolve() or output.exists() and path.exists() and output.samefile(path):
+            raise UserError(f"-o {output} is {what}: writing it would overwrite the raw data; {hint}")
+
+
 def cmd_corrupt(args) -> int:
     from .corruption import parse_corruption
     from .data import without_reference_frame
     from .io import write_bvh
+    from .io.atomic import atomic_path
     from .io.mask import sidecar_path, write_mask
 
     recorded = _read(args.input)
     motion = recorded if args.keep_reference else without_reference_frame(recorded)
     if motion.n_frames < recorded.n_frames:
         print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
-    obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
-    out = Path(args.output)
+    source, out = Path(args.input), Path(args.output)
     mask_path = sidecar_path(out)
-    write_bvh(out, obs.bridged())
-    write_mask(mask_path, obs.observed, motion.skeleton)
+    for path in (out, mask_path):
+        _refuse_overwriting(path, source, sidecar_path(source), "name another file")
+    _check_bvh_output(out)
+    obs = parse_corruption(args.corrupt).apply(motion, seed=args.seed)
+    with atomic_path(out) as take_tmp, atomic_path(mask_path) as mask_tmp:  # both, or neither
+        write_bvh(take_tmp, obs.bridged())
+        write_mask(mask_tmp, obs.observed, motion.skeleton)
     missing = 1.0 - obs.observed.mean()
     print(f"wrote {out} ({motion.n_frames} frames, corruption {parse_corruption(args.corrupt)}, seed {args.seed})")
     print(f"wrote {mask_path} ({missing:.1%} of joint samples missing; gaps are bridged linearly in the BVH)")
@@ -241,9 +260,10 @@ def cmd_corrupt(args) -> int:
 BACKUP_SUFFIX = ".orig"
 
 
-def _back_up(take: Path) -> None:
-    """Keep ``take`` as TAKE.orig before it is cleaned over itself (atomically); an existing
-    backup is kept, since it holds the take as it was before the first clean."""
+def _back_up(take: Path) -> Path | None:
+    """Keep ``take`` as TAKE.orig before it is cleaned over itself (atomically) and return
+    that file; an existing backup is kept (None), since it holds the take as it was before
+    the first clean."""
     import shutil
 
     from .io.atomic import atomic_path
@@ -251,16 +271,17 @@ def _back_up(take: Path) -> None:
     backup = take.with_name(take.name + BACKUP_SUFFIX)
     if backup.exists():
         print(f"note: {backup} is kept as it is (the take before its first in-place clean)", file=sys.stderr)
-        return
+        return None
     with atomic_path(backup) as tmp:
         shutil.copy2(take, tmp)
-    print(f"note: the raw take is kept as {backup}", file=sys.stderr)
+    return backup
 
 
 def cmd_clean(args) -> int:
     from . import registry
     from .data.roots import files_under
     from .io import MOTION_SUFFIXES
+    from .io.mask import sidecar_path
 
     source = Path(args.input)
     if args.in_place:
@@ -273,13 +294,14 @@ def cmd_clean(args) -> int:
         raise UserError("name the cleaned take's file with -o (or clean a BVH take over itself with --in-place)")
     else:
         output = Path(args.output)
-        if not source.is_dir() and (
-            output.resolve() == source.resolve() or source.exists() and output.exists() and output.samefile(source)
-        ):
-            raise UserError(
-                f"-o {output} is the input take: cleaning would overwrite the raw take. Name another file, "
-                f"or pass --in-place, which keeps the original as {source.name}{BACKUP_SUFFIX}"
+        if not source.is_dir():
+            _refuse_overwriting(
+                output,
+                source,
+                Path(args.mask) if args.mask else sidecar_path(source),
+                f"name another file, or pass --in-place, which keeps the raw take as {source.name}{BACKUP_SUFFIX}",
             )
+            _check_bvh_output(output)
     engine = registry.create(args.engine)  # a bad spec or unreadable weights stop here, before any take
     if args.mapping:
         from .io.mapping import read_mapping
@@ -290,9 +312,15 @@ def cmd_clean(args) -> int:
     if not source.is_dir():
         from .batch import clean_file
 
-        if args.in_place:
-            _back_up(source)
-        report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects)
+        backup = _back_up(source) if args.in_place else None
+        try:
+            report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects)
+        except BaseException:  # the take is as it was: no backup of it is left to mislead a later run
+            if backup is not None:
+                backup.unlink()
+            raise
+        if backup is not None:
+            print(f"note: the raw take is kept as {backup}", file=sys.stderr)
         for note in report.notes:
             print(f"note: {note}", file=sys.stderr)
         print(report)

@@ -597,3 +597,11 @@ def test_learned_kalman_save_load_round_trip(learned, clip, tmp_path):
 def test_learned_kalman_weights_live_in_the_package():
     engine = create("kalman-learned", pretrained=False)
     assert engine.default_weights_dir().parts[-4:] == ("engines", "kalman", "weights", "kalman-learned")
+
+
+def test_a_gaussian_wider_than_the_take_is_its_mean_and_costs_no_more(walk):
+    """A kernel never reaches past the take, so it is cut there (a 1e9 ms sigma once
+    tried to allocate hundreds of GiB): with every frame in reach, each is the mean."""
+    short = walk.slice(0, 50)
+    out = create("gaussian:sigma_ms=1e9").clean(Observation(short)).motion.channels
+    np.testing.assert_allclose(out[:, :3], np.broadcast_to(short.channels[:, :3].mean(axis=0), (50, 3)), atol=1e-6)

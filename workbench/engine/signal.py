@@ -195,20 +195,24 @@ def fill_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
 TRUNCATE = 4.0
 
 
-def gaussian_kernel(sigma_frames: float) -> np.ndarray:
+def gaussian_kernel(sigma_frames: float, max_radius: int | None = None) -> np.ndarray:
     """A sampled zero-mean Gaussian kernel, normalised to sum 1.
 
     Parameters
     ----------
     sigma_frames : float
         Its standard deviation, in frames (> 0).
+    max_radius : int, optional
+        The most frames it may reach each way (a filter of a clip of F frames never
+        reaches further than F - 1).
 
     Returns
     -------
     ndarray, shape (2 r + 1,)
-        The kernel, of radius ``r = round(TRUNCATE * sigma_frames)`` frames.
+        The kernel, of radius ``r = round(TRUNCATE * sigma_frames)`` frames (at most
+        ``max_radius``).
     """
-    radius = int(TRUNCATE * sigma_frames + 0.5)
+    radius = int(min(TRUNCATE * sigma_frames + 0.5, np.inf if max_radius is None else max_radius))
     i = np.arange(-radius, radius + 1, dtype=float)
     k = np.exp(-0.5 * (i / sigma_frames) ** 2)
     return k / k.sum()
@@ -266,7 +270,7 @@ def normalized_gaussian(
         c = c[:, None]
     if columns is None:
         columns = np.zeros(X.shape[1], int) if c.shape[1] == 1 else np.arange(X.shape[1])
-    k = gaussian_kernel(sigma_frames)
+    k = gaussian_kernel(sigma_frames, max_radius=X.shape[0] - 1)  # zero beyond: the ratio is the same
     if np.all(c == 1.0):  # fully observed: one normaliser for every column
         num = convolve_time(X, k)
         den = convolve_time(np.ones((X.shape[0], 1)), k)

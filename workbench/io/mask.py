@@ -53,12 +53,20 @@ def read_mask(path: str | Path, skeleton: Skeleton, n_frames: int) -> np.ndarray
     if doc.get("frames") != n_frames:
         raise MotionFileError(path, f"the mask is for {doc.get('frames')} frames, the take has {n_frames}")
     observed = np.ones((n_frames, skeleton.n_joints), bool)
-    for name, spans in doc.get("missing", {}).items():
+    missing = doc.get("missing", {})
+    if not isinstance(missing, dict):
+        raise MotionFileError(path, "'missing' must map joint names to lists of [start, stop) frame spans")
+    for name, spans in missing.items():
         if name not in skeleton.names:
             raise MotionFileError(path, f"the mask names joint {name!r}, which the take's skeleton lacks")
         j = skeleton.names.index(name)
-        for span in spans:
-            if not (isinstance(span, list) and len(span) == 2 and 0 <= span[0] < span[1] <= n_frames):
+        for span in spans if isinstance(spans, list) else [spans]:
+            if not (
+                isinstance(span, list)
+                and len(span) == 2
+                and all(type(frame) is int for frame in span)  # (not a bool, a float or null)
+                and 0 <= span[0] < span[1] <= n_frames
+            ):
                 raise MotionFileError(path, f"joint {name!r}: bad span {span!r} (want [start, stop) within the take)")
             observed[span[0] : span[1], j] = False
     return observed
