@@ -31,8 +31,9 @@ _REQUIRED = object()
 
 # kind -> (description used in messages, integer?, lower bound, upper bound)
 _KINDS: dict[str, tuple[str, bool, float, float]] = {
-    "scale": ("a number >= 0", False, 0.0, math.inf),
-    "cm": ("a length in cm >= 0", False, 0.0, math.inf),
+    # (bounded far above any use: 1e308 overflowed into NaN, or left the IK of spatial noise turning for ever)
+    "scale": ("a number from 0 to 1,000", False, 0.0, 1e3),
+    "cm": ("a length in cm from 0 to 100,000", False, 0.0, 1e5),
     "prob": ("a probability in [0, 1]", False, 0.0, 1.0),
     "mean-frames": ("a number of frames >= 1", False, 1.0, math.inf),
     "count": ("a whole number >= 0", True, 0.0, math.inf),
