@@ -101,6 +101,48 @@ def test_a_malformed_mask_is_one_line(missing, tmp_path, walk, capsys):
     assert "m.json" in err and "span" in err and "Traceback" not in err and err.count("\n") == 1
 
 
+def test_a_take_with_nothing_observed_is_refused_not_made_up(tmp_path, walk, capsys):
+    from workbench.io.bvh import format_bvh
+
+    lines = format_bvh(walk.slice(0, 20)).splitlines()
+    frames = lines.index("MOTION") + 3
+    lines[frames:] = [" ".join(["nan"] * len(line.split())) for line in lines[frames:]]
+    take = tmp_path / "nan.bvh"
+    take.write_text("\n".join(lines) + "\n")
+    for args in (["clean", str(take), "-o", str(tmp_path / "o.bvh"), "--engine", "gaussian"], ["inspect", str(take)]):
+        assert main(args) == 2
+        assert "no sample of the take is observed" in capsys.readouterr().err
+    assert not (tmp_path / "o.bvh").exists()
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (
+            ["bench", "--engines", "gaussian", "--corrupt", "angular:0.5", "--seeds", "0"],
+            "--seeds: want a whole number",
+        ),
+        (["bench", "--long", "--minutes", "nan", "--engines", "gaussian", "--corrupt", "none"], "above 0, got nan"),
+        (
+            ["clean", "x", "-o", "y", "--engine", "lerp", "--workers", "0"],
+            "--workers: want a whole number of at least 1",
+        ),
+        (["train", "kalman-learned", "--epochs", "two"], "--epochs: want a whole number, got 'two'"),
+    ],
+)
+def test_counts_and_lengths_out_of_range_are_refused_before_any_work(args, needle, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(args)
+    assert exit_.value.code == 2 and needle in capsys.readouterr().err
+
+
+def test_train_into_a_file_is_refused_before_training(tmp_path, data_root, capsys):
+    out = tmp_path / "weights"
+    out.write_text("a file")
+    assert main(["train", "kalman-learned", "--dataset", "cmu", "--out", str(out)]) == 2
+    assert "is a file; the weights go into a folder" in capsys.readouterr().err and out.read_text() == "a file"
+
+
 @pytest.mark.usefixtures("data_root")
 def test_bench_takes_the_clips_of_a_dataset_without_a_split_by_pattern(tmp_path, capsys):
     js = tmp_path / "b.json"

@@ -183,3 +183,19 @@ def test_no_code_of_the_package_can_unpickle_a_file():
         if calls.search(line)
     }
     assert found == {"workbench/engine/weights.py: with np.load(path, allow_pickle=False) as data:"}
+
+
+def test_weights_with_nan_are_never_saved_nor_loaded_and_an_empty_file_is_refused(saved, tmp_path_factory):
+    empty = tmp_path_factory.mktemp("nan")
+    with pytest.raises(EngineError, match="NaN or infinite values"):
+        save_weights(empty, {"w": np.array([1.0, np.nan])}, {"engine": "demo", "skeleton_signature": "x"})
+    assert not any(empty.iterdir())
+    nan_file = tmp_path_factory.mktemp("nan_file") / "w.npz"
+    np.savez(nan_file, w=np.array([np.inf]))
+    for content, needle in ((b"", "unreadable weights"), (nan_file.read_bytes(), "NaN or infinite")):
+        (saved / WEIGHTS_FILE).write_bytes(content)  # re-signed: passes the checksums
+        manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
+        manifest["sha256"] = weights.sha256_file(saved / WEIGHTS_FILE)
+        (saved / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
+        with pytest.raises(EngineError, match=needle):
+            load_weights(saved)

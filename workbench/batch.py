@@ -33,6 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import ClusterError
+
 #: the file in an output folder that records how its takes were cleaned
 MANIFEST = ".workbench-clean.json"
 
@@ -86,10 +88,9 @@ def clean_file(
     with ``fill_suspects`` the samples ``workbench inspect`` flags as bad data
     (:func:`workbench.data.inspection.suspects_missing`) are cleaned as gaps.
     Raises what reading and cleaning raise (MotionFileError, EngineError, ...)."""
-    from .core.motion import Observation
     from .data import has_reference_frame
     from .io import read_motion, write_bvh
-    from .io.mask import take_mask
+    from .io.mask import observed_take, take_mask
 
     source, output = Path(source), Path(output)
     motion = read_motion(source)
@@ -113,7 +114,7 @@ def clean_file(
             f"frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "
             "(--keep-reference cleans it with the motion)"
         )
-    observation = Observation(motion, observed)
+    observation = observed_take(source, motion, observed)
     if fill_suspects:
         from .data.inspection import FILL_REASONS, suspects_missing
 
@@ -298,7 +299,14 @@ def dask_client(workers: int | None, scheduler: str | None, n_tasks: int | None 
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        with Client(scheduler) as client:
+        try:
+            client = Client(scheduler)
+        except (OSError, ValueError) as err:  # (a bad address, or nothing listening there: after Dask's timeout)
+            raise ClusterError(
+                f"cannot reach a Dask scheduler at {scheduler!r} ({err}); start one there (`dask scheduler`), "
+                "or leave out --scheduler to run on a local cluster"
+            ) from None
+        with client:
             yield client
         return
     n = max(1, min(workers or os.cpu_count() or 1, n_tasks or 1 << 30))

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from pathlib import Path
@@ -164,13 +165,13 @@ def cmd_inspect(args) -> int:
     from .core.motion import Observation
     from .data import without_reference_frame
     from .data.inspection import FILL_REASONS, inspect_motion
-    from .io.mask import take_mask
+    from .io.mask import observed_take, take_mask
 
     recorded = _read(args.take)
     motion = without_reference_frame(recorded)
     dropped = recorded.n_frames - motion.n_frames
     observed, mask = take_mask(args.take, recorded.skeleton, recorded.n_frames, args.mask)  # the file's frames
-    observed = None if observed is None else observed[dropped:]
+    observed = observed_take(args.take, motion, None if observed is None else observed[dropped:]).observed
     weights, points = [], []
     for spec in args.engine or []:
         result = registry.create(spec).clean(Observation(motion, observed))
@@ -613,6 +614,8 @@ def cmd_train(args) -> int:
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.variant)
+    if out.exists() and not out.is_dir():  # found now, not after the training
+        raise UserError(f"--out {out} is a file; the weights go into a folder: name a new or an existing one")
     test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
         run = train_engine(
@@ -754,6 +757,32 @@ def cmd_screenshots(args) -> int:
     return 0
 
 
+def _whole_number(least: int):
+    """An argparse type: a whole number of at least ``least``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"want a whole number, got {text!r}") from None
+        if value < least:
+            raise argparse.ArgumentTypeError(f"want a whole number of at least {least}, got {value}")
+        return value
+
+    return parse
+
+
+def _positive_number(text: str) -> float:
+    """An argparse type: a finite number above 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"want a number, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"want a number above 0, got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .data import SPLITS
     from .metrics import JOINT_METRICS, METRICS
@@ -778,8 +807,8 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument(
             "--clips", metavar="GLOB", help="only clips whose id or a part of it matches, e.g. 'cmu/walk/*' or 'walk'"
         )
-        sp.add_argument("--seeds", type=int, default=1, help="number of seeds (default 1)")
-        sp.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
+        sp.add_argument("--seeds", type=_whole_number(1), default=1, help="number of seeds (default 1)")
+        sp.add_argument("--seed0", type=_whole_number(0), default=0, help="first seed (default 0)")
 
     sp = sub.add_parser("data", help="list the clips and their train/validation/test split")
     data_opt(sp)
@@ -817,7 +846,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("input")
     sp.add_argument("-o", "--output", required=True)
     sp.add_argument("--corrupt", required=True, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01")
-    sp.add_argument("--seed", type=int, default=0)
+    sp.add_argument("--seed", type=_whole_number(0), default=0)
     sp.add_argument("--keep-reference", action="store_true", help="keep a T-pose frame 0")
     sp.set_defaults(func=cmd_corrupt)
 
@@ -835,7 +864,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
     sp.add_argument(
         "--workers",
-        type=int,
+        type=_whole_number(1),
         metavar="N",
         help="a folder: clean on a local Dask cluster of N single-threaded workers (default: the machine's cores)",
     )
@@ -891,7 +920,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("-v", "--verbose", action="store_true")
     sp.add_argument(
         "--workers",
-        type=int,
+        type=_whole_number(1),
         metavar="N",
         help="run on a local Dask cluster of N single-threaded workers, a task per engine and clip (default: here, "
         "in this process)",
@@ -903,12 +932,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="instead of the clips: a studio-length take (cmu/walk/03_04 forwards and backwards), BVH read and "
         "write speeds, and a workbench clean command per engine on it (time, frames/s, peak memory)",
     )
-    sp.add_argument("--minutes", type=float, default=10.0, help="the long take's length (default 10)")
+    sp.add_argument("--minutes", type=_positive_number, default=10.0, help="the long take's length (default 10)")
     sp.set_defaults(func=cmd_bench)
 
     sp = sub.add_parser("train", help="train an engine on the training split")
     sp.add_argument("engine", metavar="SPEC")
-    sp.add_argument("--epochs", type=int)
+    sp.add_argument("--epochs", type=_whole_number(1))
     data_opt(
         sp,
         f"train on this dataset's training split (default: {COMMITTED_WEIGHTS_DATASET} where the data "
@@ -940,7 +969,7 @@ def build_parser() -> argparse.ArgumentParser:
             metavar="SPEC",
             help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})",
         )
-        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--seed", type=_whole_number(0), default=0)
         sp.add_argument(
             "--engine",
             action="append",

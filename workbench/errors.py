@@ -5,6 +5,10 @@ app and batch workers report instead of a traceback."""
 from __future__ import annotations
 
 
+class ClusterError(Exception):
+    """A Dask cluster that cannot be reached at the address the user gave."""
+
+
 def user_errors() -> tuple[type[BaseException], ...]:
     """The exception types whose message is meant for the user."""
     from .core.humanoid import HumanoidError
@@ -20,6 +24,7 @@ def user_errors() -> tuple[type[BaseException], ...]:
         CorruptionSpecError,
         DataNotFoundError,
         HumanoidError,
+        ClusterError,
         KeyError,
     )
 

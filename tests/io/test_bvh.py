@@ -258,6 +258,14 @@ def test_not_a_number(walk, tmp_path):
     _expect(tmp_path, "\n".join(lines), "'abc' is not a number", line=len(lines))
 
 
+@pytest.mark.parametrize("word", ["nan", "inf", "-inf"])
+def test_an_offset_that_is_not_a_finite_number(walk, tmp_path, word):
+    lines = _small(walk).splitlines()
+    at = next(i for i, line in enumerate(lines) if line.strip().startswith("OFFSET") and i > 3)
+    lines[at] = lines[at].replace("OFFSET", f"OFFSET {word}", 1).rsplit(" ", 1)[0]
+    _expect(tmp_path, "\n".join(lines), f"expected a number for OFFSET x, found '{word}'", line=at + 1)
+
+
 def test_unknown_channel(walk, tmp_path):
     text = _small(walk).replace("Zrotation Yrotation Xrotation", "Zrotation Yrotation Wrotation", 1)
     _expect(tmp_path, text, "unknown channel name 'Wrotation'")

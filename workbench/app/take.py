@@ -18,6 +18,7 @@ import numpy as np
 from ..core.motion import Motion, Observation
 from ..data.inspection import Inspection, inspect_motion
 from ..io import MOTION_SUFFIXES, read_motion
+from ..io.mask import observed_take
 from ..metrics import body_joints, joint_position_error_cm
 from ..render.scene import skeleton_points
 from .defaults import DEFAULT_CORRUPTION, DEFAULT_ENGINES
@@ -156,7 +157,7 @@ def make_take(
         case = make_case(motion, spec, seed)
         truth, observation = motion, case.observation
     else:
-        truth, observation = None, Observation(motion, observed)
+        truth, observation = None, observed_take(source or motion.name, motion, observed)
     if fill_suspects:
         from ..data.inspection import suspects_missing
 

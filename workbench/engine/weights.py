@@ -14,6 +14,7 @@ import hashlib
 import json
 import subprocess
 import time
+import zipfile
 from pathlib import Path
 from typing import Mapping
 
@@ -135,6 +136,9 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
 
     Raises
     ------
+    EngineError
+        Arrays that hold NaN or infinite values (a training that diverged, or had no
+        data), before any file is written.
     TypeError
         A manifest value that is not JSON serialisable.
     OSError
@@ -142,11 +146,13 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
     """
     from .. import __version__
 
+    arrays = {k: np.asarray(v) for k, v in arrays.items()}
+    _refuse_non_finite(arrays, "the trained weights")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     with atomic_path(folder / WEIGHTS_FILE) as tmp:
         with open(tmp, "wb") as fh:
-            np.savez(fh, **{k: np.asarray(v) for k, v in arrays.items()})
+            np.savez(fh, **arrays)
         full = {
             **manifest,
             "format_version": FORMAT_VERSION,
@@ -186,7 +192,8 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
         tampered file: no manifest, an unreadable (a truncated) one, one of an older or
         a newer :data:`FORMAT_VERSION`, one edited after it was saved, a weights file
         named by a path out of the folder, a missing weights file, a checksum that does
-        not match (a truncated or changed file), or unreadable weights.
+        not match (a truncated or changed file), unreadable weights, or weights that
+        hold NaN or infinite values.
     """
     folder = Path(folder)
     manifest_path = folder / MANIFEST_FILE
@@ -230,6 +237,18 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as err:
-        raise EngineError(f"{path}: unreadable weights ({err})") from None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
+        raise EngineError(f"{path}: unreadable weights ({err or type(err).__name__})") from None
+    _refuse_non_finite(arrays, str(path))
     return arrays, manifest
+
+
+def _refuse_non_finite(arrays: Mapping[str, np.ndarray], what: str) -> None:
+    """Raise EngineError where an array holds NaN or infinite values: such weights would
+    clean every take into NaN."""
+    broken = [k for k, a in arrays.items() if a.dtype.kind in "fc" and not np.isfinite(a).all()]
+    if broken:
+        raise EngineError(
+            f"{what}: the weights hold NaN or infinite values (in {', '.join(broken[:3])}): the training "
+            "diverged or had no data; train the engine again on clean takes"
+        )

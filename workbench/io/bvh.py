@@ -15,6 +15,7 @@ joint's channels as frame 0's, which the other frames repeat up to printing).
 from __future__ import annotations
 
 import io
+import math
 import os
 import re
 from pathlib import Path
@@ -74,11 +75,15 @@ class _Tokens:
         return line
 
     def number(self, what: str) -> float:
+        """The next token as a finite number (a header's: NaN or inf is no offset or frame time)."""
         tok, line = self.next(what)
         try:
-            return float(tok)
+            value = float(tok)
         except ValueError:
-            raise MotionFileError(self.path, f"expected a number for {what}, found {tok!r}", line) from None
+            value = math.nan
+        if not math.isfinite(value):
+            raise MotionFileError(self.path, f"expected a number for {what}, found {tok!r}", line)
+        return value
 
 
 #: a header token

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core.motion import Motion, Observation
 from ..core.skeleton import Skeleton
 from .atomic import atomic_write_text
 from .errors import MotionFileError, read_json_file
@@ -39,6 +40,16 @@ def take_mask(take: str | Path, skeleton: Skeleton, n_frames: int, mask: str | P
     if not mask and not path.exists():
         return None, None
     return read_mask(path, skeleton, n_frames), path
+
+
+def observed_take(path: str | Path, motion: Motion, observed: np.ndarray | None = None) -> Observation:
+    """The take ``motion`` read from ``path`` as an observation with its mask ``observed``
+    (F, J) if any; MotionFileError where no sample of it is observed (every value NaN,
+    or masked out): there is nothing to clean or inspect, and engines would make it up."""
+    observation = Observation(motion, observed)
+    if not observation.observed.any():
+        raise MotionFileError(path, "no sample of the take is observed (every value is NaN or masked as missing)")
+    return observation
 
 
 def write_mask(path: str | Path, observed: np.ndarray, skeleton: Skeleton) -> None:
