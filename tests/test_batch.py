@@ -76,6 +76,9 @@ def test_resume_skips_the_takes_done_and_refuses_another_engine(library, tmp_pat
     assert not stale.exists(), "the next write of a take removes what a killed one left"
     assert main(["clean", str(library), "-o", str(out), "--engine", "gaussian", "--resume"]) == 2
     assert "--resume would mix the two" in capsys.readouterr().err
+    (out / ".workbench-clean.json").write_text("{ not json")
+    assert main([*argv, "--resume"]) == 2
+    assert "cannot be read, so what" in capsys.readouterr().err
 
 
 def test_an_existing_cluster_runs_the_same_code_path(library, tmp_path, capsys):

@@ -67,6 +67,10 @@ def test_clean_treats_nan_as_missing(tmp_path, walk):
         (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "nope"], "unknown engine"),
         (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),
         (["clean", "{good}", "-o", "{tmp}/o.amc", "--engine", "identity"], "the .bvh suffix"),
+        (["clean", "{good}", "-o", "{bad}/o.bvh", "--engine", "identity"], "bad.bvh is a file, not a folder"),
+        (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "cae:window_frames=0"], "window_frames must be"),
+        (["data", "--dataset", "nosuch"], "no clips of split='all' dataset='nosuch'"),
+        (["bench", "--engines", ",", "--corrupt", "angular:0.5"], "no engine named in ','"),
         (["bench", "--engines", "identity", "--corrupt", "angular:0.5", "--data", "{tmp}/none"], "not a folder"),
     ],
 )

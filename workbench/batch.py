@@ -57,8 +57,8 @@ class TakeReport:
     skipped: bool = False
 
     def __str__(self) -> str:
-        if self.error is not None:
-            return f"{self.source}: {self.error}"
+        if self.error is not None:  # (a file error names the take already)
+            return self.error if self.error.startswith(f"{self.source}:") else f"{self.source}: {self.error}"
         if self.skipped:
             return f"kept {self.output}: up to date"
         weights = f" ({self.weights})" if self.weights else ""
@@ -233,7 +233,10 @@ def check_manifest(out_dir: Path, settings: dict, resume: bool) -> None:
         try:
             before = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
-            before = None
+            raise ValueError(
+                f"{path} cannot be read, so what {out_dir} was cleaned with is not known: --resume could mix two "
+                "cleanings; leave out --resume to clean every take again, or name another folder"
+            ) from None
         if before != settings:
             raise ValueError(
                 f"{out_dir} was cleaned with {before}, not {settings}: --resume would mix the two; "

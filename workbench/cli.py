@@ -37,7 +37,8 @@ def _message(err: BaseException) -> str:
 
 def split_engine_specs(values: list[str]) -> list[str]:
     """``["ebf:bias=true,free=1,gaussian"]`` -> ``["ebf:bias=true,free=1", "gaussian"]``:
-    a comma-separated piece that is a bare ``key=value`` continues the previous spec."""
+    a comma-separated piece that is a bare ``key=value`` continues the previous spec.
+    UserError where ``values`` name no engine at all (``","``)."""
     specs: list[str] = []
     for value in values:
         for piece in filter(None, (p.strip() for p in value.split(","))):
@@ -45,6 +46,8 @@ def split_engine_specs(values: list[str]) -> list[str]:
                 specs[-1] += "," + piece
             else:
                 specs.append(piece)
+    if values and not specs:
+        raise UserError(f"no engine named in {' '.join(values)!r}: name one or more, e.g. 'kalman,ebf'")
     return specs
 
 
@@ -73,7 +76,13 @@ def cmd_data(args) -> int:
     from .data import SPLITS, catalogue, select
 
     root = _data_root(args)
-    clips = select(catalogue(root), args.split, dataset=args.dataset)
+    every = catalogue(root)
+    clips = select(every, args.split, dataset=args.dataset)
+    if not clips:
+        datasets = ", ".join(dict.fromkeys(c.dataset for c in every)) or "none"
+        raise UserError(
+            f"no clips of split={args.split!r} dataset={args.dataset!r} under {root} (its datasets: {datasets})"
+        )
     print(f"data root: {root}")
     wide = {"id": 4, "category": 8, "who": 13}
     for c in clips:
@@ -401,7 +410,8 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
     if skipped:
         print(f"note: {skipped} takes were up to date (--resume) and kept", file=sys.stderr)
     if failed:
-        print(f"workbench clean: {len(failed)} of {len(jobs)} takes failed; the others were written:", file=sys.stderr)
+        others = "the others were written" if len(failed) < len(jobs) else "none was written"
+        print(f"workbench clean: {len(failed)} of {len(jobs)} takes failed ({others}):", file=sys.stderr)
         for report in failed:
             print(f"  {report}", file=sys.stderr)
         return 2

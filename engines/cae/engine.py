@@ -173,6 +173,20 @@ class TrainingParams:
     miss_fade_s: float = 1.0
 
     def __post_init__(self) -> None:
+        for name in ("epochs", "frames_per_epoch", "window_frames", "batch_size"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be a whole number of at least 1, got {getattr(self, name)}")
+        for name in ("curriculum_epochs", "pose_copies", "seed"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be a whole number of at least 0, got {getattr(self, name)}")
+        for name in ("gap_sigma_frames", "time_scale_pct", "body_scale_pct", "input_noise", "pose_jitter_deg"):
+            if not (np.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"{name} must be a number of at least 0, got {getattr(self, name)}")
+        if not (np.isfinite(self.learning_rate) and self.learning_rate > 0) or not 0 <= self.ema_decay < 1:
+            raise ValueError(
+                f"learning_rate must be above 0 and ema_decay from 0 to below 1, got {self.learning_rate} and "
+                f"{self.ema_decay}"
+            )
         if self.input_fill not in ("zero", "linear"):
             raise ValueError(f"input_fill must be 'zero' or 'linear', got {self.input_fill!r}")
         if self.sampling not in ("frames", "clips"):

@@ -13,6 +13,7 @@ from workbench.core.humanoid import map_humanoid
 from workbench.core.kinematics import forward_kinematics
 from workbench.corruption import parse_corruption
 from workbench.engine import EngineError
+from workbench.engine.base import HUMANOID_SIGNATURE
 from workbench.engine.canonical import CanonicalBody
 from workbench.engine.signal import bridge_gaps
 from workbench.engine.smoothing import ik_reference
@@ -28,7 +29,7 @@ def universal(walk, studio_take):
 
 
 def test_trains_on_two_skeletons_and_cleans_a_third(universal, kick):
-    assert universal.skeleton_description_ == "the canonical humanoid"
+    assert universal.skeleton_signature_ == HUMANOID_SIGNATURE
     obs = parse_corruption("block:30").apply(kick.slice(0, 150), seed=0)
     result = universal.clean(obs)
     out = result.motion
@@ -81,7 +82,7 @@ def test_trains_on_a_skeleton_without_toes_from_the_rows_it_has(walk, kick):
     from engines.cae.training import image_units, train
 
     params = CAE.Params(epochs=1, frames_per_epoch=512, window_frames=64, batch_size=4, universal=True)
-    assert CAE(params).fit([walk.slice(0, 200), kick.slice(0, 200)]).skeleton_description_ == "the canonical humanoid"
+    assert CAE(params).fit([walk.slice(0, 200), kick.slice(0, 200)]).skeleton_signature_ == HUMANOID_SIGNATURE
 
     layout, imaging = CANONICAL_LAYOUT, CanonicalJoints(map_humanoid(kick.skeleton))
     has = image_mask(layout, imaging.known(np.ones((1, kick.skeleton.n_joints), bool)))[0]

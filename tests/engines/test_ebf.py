@@ -390,12 +390,21 @@ def test_bias_variant_subtracts_its_bias(walk):
     assert np.abs((res.motion.channels[:, cols] - expect + 180) % 360 - 180).max() < 1e-6
 
 
-def test_refuses_another_skeleton(ebf, kick):
+def test_refuses_another_skeleton_naming_the_ones_it_has_weights_for(ebf, kick, walk, tmp_path):
     obs = Observation(kick.slice(0, 60))
-    with pytest.raises(EngineError, match="skeleton"):
+    with pytest.raises(EngineError, match=r"it has weights for 21 joints .* \(bandai\) and 31 joints .* \(cmu\)"):
         ebf.clean(obs)
     with pytest.raises(EngineError, match="skeleton"):
         ebf.stream(kick.skeleton, kick.fps)
+    from workbench.io import read_bvh
+    from workbench.io.bvh import format_bvh
+
+    text = format_bvh(walk.slice(0, 60))  # the CMU joints, the first arm joint turning in another order
+    at = text.index("JOINT LeftArm")
+    channels = text.index("Zrotation Yrotation Xrotation", at)
+    (tmp_path / "t.bvh").write_text(text[:channels] + "Xrotation Yrotation Zrotation" + text[channels + 29 :])
+    with pytest.raises(EngineError, match="the joints of its cmu weights with other channels or rotation orders"):
+        ebf.clean(Observation(read_bvh(tmp_path / "t.bvh")))
 
 
 def test_ebf_beats_gaussian_on_a_held_out_walk(ebf, held_out_walk):

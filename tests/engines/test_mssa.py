@@ -20,6 +20,7 @@ from workbench.core.rotations import wrap_deg
 from workbench.corruption import parse_corruption
 from workbench.data import select
 from workbench.engine import EngineError, NotFittedError
+from workbench.engine.base import HUMANOID_SIGNATURE
 from workbench.metrics import angle_error_deg, bone_lengths
 from workbench.testing import check_engine
 
@@ -320,7 +321,7 @@ def test_universal_bases_train_on_two_skeletons_and_clean_a_third(universal, kic
     """Fitted on CMU and Bandai takes at 120 fps, they clean a Daz take (no toes: filled by
     the bases, dropped on the way back) on its own bones; the robust weights come back per
     take joint; saved and loaded, they give the same output."""
-    assert universal.skeleton_description_ == "the canonical humanoid" and universal.fps_ == 120.0
+    assert universal.skeleton_signature_ == HUMANOID_SIGNATURE and universal.fps_ == 120.0
     assert set(universal.models_) == {"positions"} and universal.models_["positions"].columns.size <= 63
     take = kick.slice(0, 200)
     truth = universal.clean(Observation(take)).motion

@@ -77,9 +77,9 @@ class Clip:
 
 def has_reference_frame(motion: Motion) -> bool:
     """True when frame 0 is a rest/T-pose frame added by a converter (see module doc)."""
-    if motion.n_frames < 3:
-        return False
     a, body = motion.angles_deg, angle_joints(motion.skeleton)
+    if motion.n_frames < 3 or not len(body):  # (a lone root has no body pose to tell by)
+        return False
     root_zero = np.all(a[0, motion.skeleton.body_root] == 0.0)
     return bool(root_zero and np.mean(np.abs(a[0, body])) < 0.5 * np.mean(np.abs(a[1, body])))
 

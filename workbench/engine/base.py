@@ -584,29 +584,26 @@ class Engine:
             self.humanoid(skeleton)
             return
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
+            known = self.weights_skeletons_()
+            alike = [name for sig, name in known.items() if _signature_joints(sig) == list(skeleton.names)]
+            differs = f", the joints of its {alike[0]} weights with other channels or rotation orders" if alike else ""
             raise EngineError(
                 f"engine {self.info.name!r} has no weights for this skeleton ({skeleton.n_joints} body joints "
-                f"rooted at {skeleton.names[0]!r}; its weights are for {self.skeleton_description_}). "
-                "Train it on takes of this skeleton "
-                f"(`workbench train {self.info.name} --data DIR --out FOLDER`) and clean with "
-                f"`{self.info.name}:{WEIGHTS_OPTION}=FOLDER`."
+                f"rooted at {skeleton.names[0]!r}{differs}; it has weights for "
+                + " and ".join(f"{_describe_signature(sig)} ({name})" for sig, name in known.items())
+                + f"). Train it on takes of this skeleton (`workbench train {self.info.name} --data DIR --out "
+                f"FOLDER`) and clean with `{self.info.name}:{WEIGHTS_OPTION}=FOLDER`."
             )
 
-    @property
-    def skeleton_description_(self) -> str:
-        """The fitted skeleton layout in words, for messages: ``31 joints rooted at 'Hips'``.
-
-        Returns
-        -------
-        str
-            The joint count and root name read from :attr:`skeleton_signature_`;
-            ``"unknown"`` when the engine is not fitted.
-        """
-        sig = self.skeleton_signature_ or ""
-        if sig == HUMANOID_SIGNATURE:
-            return "the canonical humanoid"
-        joints = [part for part in sig.split(";") if not part.startswith("translated:")]
-        return f"{len(joints)} joints rooted at {joints[0].split('<')[0]!r}" if sig else "unknown"
+    def weights_skeletons_(self) -> dict[str, str]:
+        """The skeletons this engine has weights for, each by the name of its weights'
+        folder: every committed set where it runs on committed weights, else the weights
+        it was fitted or loaded with (empty when it has none)."""
+        if self.runs_on_committed_weights:
+            return {sig: folder.name for sig, folder in self.committed_weights().items()}
+        if self.skeleton_signature_ is None:
+            return {}
+        return {self.skeleton_signature_: self.loaded_from_.name if self.loaded_from_ else "fitted here"}
 
     def require_fitted(self) -> None:
         """Refuse a trainable engine that has neither been fitted nor loaded.
@@ -901,11 +898,17 @@ class Engine:
             there is none, or when the weights in use are not committed ones (fitted
             here, or a folder a user named: theirs to choose).
         """
-        if self.weights_folder is not None or self.loaded_from_ is None:
-            return None
-        if self.loaded_from_.parent != self.default_weights_dir():
-            return None
-        return self.committed_weights().get(skeleton.signature())
+        return self.committed_weights().get(skeleton.signature()) if self.runs_on_committed_weights else None
+
+    @property
+    def runs_on_committed_weights(self) -> bool:
+        """Whether the weights in use are committed ones the engine chose (not fitted
+        here, nor a folder a user named: theirs to choose)."""
+        return (
+            self.weights_folder is None
+            and self.loaded_from_ is not None
+            and self.loaded_from_.parent == self.default_weights_dir()
+        )
 
     def use_weights_for(self, skeleton: Skeleton) -> None:
         """Switch to the committed weights trained for ``skeleton`` (a body view) where
@@ -1082,3 +1085,16 @@ class Pipeline(Engine):
         self.weights_used_ = f"{kind} weights " + ", ".join(f"{n} {folder}" for n, _, folder in used) if used else None
         self.spec_used_ = ">".join(s.spec_used_ or s.spec for s in self.stages)
         return CleanResult(result.motion, diagnostics)
+
+
+def _signature_joints(signature: str) -> list[str]:
+    """The joint names of a skeleton signature (:meth:`Skeleton.signature`), in order."""
+    return [part.split("<")[0] for part in signature.split(";") if part and not part.startswith("translated:")]
+
+
+def _describe_signature(signature: str) -> str:
+    """A skeleton signature in words, for messages: ``31 joints rooted at 'Hips'``."""
+    if signature == HUMANOID_SIGNATURE:
+        return "the canonical humanoid"
+    joints = _signature_joints(signature)
+    return f"{len(joints)} joints rooted at {joints[0]!r}" if joints else "an unknown skeleton"

@@ -399,9 +399,13 @@ def find_asf(amc_path: str | Path) -> Path:
     if len(candidates) == 1:
         return candidates[0]
     if not candidates:
-        raise MotionFileError(amc_path, f"no .asf skeleton file in {str(folder)!r}: pass asf_path")
+        raise MotionFileError(
+            amc_path, f"no .asf skeleton file in {str(folder)!r}: put the take's skeleton ({subject}.asf) beside it"
+        )
     raise MotionFileError(
-        amc_path, f"{len(candidates)} .asf files in {str(folder)!r} and none is named {subject}.asf: pass asf_path"
+        amc_path,
+        f"{len(candidates)} .asf files in {str(folder)!r} and none is named {subject}.asf: name the take's "
+        f"skeleton {subject}.asf",
     )
 
 
