@@ -194,7 +194,7 @@ def cmd_inspect(args) -> int:
         return 0
     if dropped:
         print("note: dropped frame 0, a T-pose reference frame; frames below count from the next", file=sys.stderr)
-    if observed is not None:
+    if mask is not None:
         print(f"note: the missing samples are those {mask} lists", file=sys.stderr)
     intervals = found.intervals()
     print(

@@ -197,6 +197,8 @@ def test_a_mapping_pins_drops_and_is_checked(data_root):
         map_humanoid(cmu, {"chest": "Chest"})
     with pytest.raises(HumanoidError, match="both"):
         map_humanoid(cmu, {"left_hand": "RightHand"})
+    with pytest.raises(HumanoidError, match=r"'Neck1' is both neck and left_shin.*the mapping pins left_foot = 'Head'"):
+        map_humanoid(cmu, {"left_foot": "Head"})  # the shin found above the foot pinned: the message names the pin
     with pytest.raises(HumanoidError, match="left_toes = 'RightToeBase' is not below left_foot = 'LeftFoot'"):
         map_humanoid(cmu, {"left_toes": "RightToeBase"})
 

@@ -344,7 +344,15 @@ def map_humanoid(skeleton: Skeleton, overrides: Mapping[str, str | None] | None 
         put(f"{side}_toes", toes)
 
     joints = tuple(found[c] for c in CANONICAL_JOINTS)
-    _check(skeleton, tree, joints)
+    try:
+        _check(skeleton, tree, joints)
+    except HumanoidError as err:
+        if not overrides:
+            raise
+        pins = ", ".join(f"{c} = {name!r}" for c, name in overrides.items())
+        raise HumanoidError(
+            f"{err} (the mapping pins {pins}, and the joints next to a pinned one follow from it)"
+        ) from None
     return HumanoidMapping(skeleton, joints, frozenset(overrides))
 
 
