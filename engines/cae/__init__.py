@@ -31,6 +31,11 @@ class ImageParams(TrainingParams):
     base_width: int = trained(16)
     top_width: int = trained(192)
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 1 <= self.base_width <= self.top_width:
+            raise ValueError(f"want 1 <= base_width <= top_width, got {self.base_width} and {self.top_width}")
+
 
 @dataclass(frozen=True)
 class CAEParams(ImageParams):
@@ -55,6 +60,14 @@ class HoldenParams(TrainingParams):
 
     hidden: int = trained(256)
     kernel_frames: int = trained(25)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.hidden < 1 or self.kernel_frames < 1 or self.kernel_frames % 2 == 0:
+            raise ValueError(
+                f"hidden must be at least 1 and kernel_frames odd and positive, got {self.hidden} and "
+                f"{self.kernel_frames}"
+            )
 
 
 class CAE(ConvAutoencoderEngine):
@@ -112,10 +125,6 @@ class Holden(ConvAutoencoderEngine):
     def build_network(self, n_rows: int):
         from .networks import HoldenNet
 
-        if self.params.kernel_frames % 2 == 0:
-            from workbench.engine import EngineError
-
-            raise EngineError(f"holden: kernel_frames must be odd, got {self.params.kernel_frames}")
         return HoldenNet(n_rows, self.params.hidden, self.params.kernel_frames, self.params.bf16)
 
 

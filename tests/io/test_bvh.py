@@ -266,6 +266,11 @@ def test_an_offset_that_is_not_a_finite_number(walk, tmp_path, word):
     _expect(tmp_path, "\n".join(lines), f"expected a number for OFFSET x, found '{word}'", line=at + 1)
 
 
+def test_fewer_channel_names_than_the_count_says(walk, tmp_path):
+    text = _small(walk).replace("CHANNELS 3 Zrotation Yrotation Xrotation", "CHANNELS 3 Zrotation Yrotation", 1)
+    _expect(tmp_path, text, "CHANNELS says 3 but names 2, then")
+
+
 def test_unknown_channel(walk, tmp_path):
     text = _small(walk).replace("Zrotation Yrotation Xrotation", "Zrotation Yrotation Wrotation", 1)
     _expect(tmp_path, text, "unknown channel name 'Wrotation'")

@@ -132,6 +132,10 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
         chans = []
         for _ in range(int(count)):
             ch, cline = tokens.next("a channel name")
+            if ch in ("JOINT", "End", "}", "OFFSET", "CHANNELS", "MOTION"):  # the header goes on: too few names
+                raise MotionFileError(
+                    path, f"joint {name!r}: CHANNELS says {int(count)} but names {len(chans)}, then {ch!r}", cline
+                )
             if ch not in ROTATION_CHANNELS + POSITION_CHANNELS:
                 raise MotionFileError(path, f"joint {name!r}: unknown channel name {ch!r}", cline)
             chans.append(ch)
