@@ -726,6 +726,8 @@ def cmd_report(args) -> int:
         on_refused=None if args.engine else refused,
         fill_suspects=args.fill_suspects,
     )  # the defaults: those that take it
+    if args.frame is not None and not 0 <= args.frame < take.n_frames:
+        raise UserError(f"--frame {args.frame}: the take's frames are 0 to {take.n_frames - 1}")
     if args.output is not None:
         print(f"wrote {write_report(args.output, take, runs, args.frame)}")
     if args.video is not None:
