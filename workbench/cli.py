@@ -280,6 +280,19 @@ def _back_up(take: Path) -> Path | None:
 
     backup = take.with_name(take.name + BACKUP_SUFFIX)
     if backup.exists():
+        from .io import read_motion
+        from .io.errors import MotionFileError
+
+        try:
+            kept = read_motion(backup)
+        except MotionFileError as err:
+            raise UserError(f"{backup} cannot be read ({err}); move it away before cleaning {take} in place") from None
+        now = read_motion(take)
+        if (kept.skeleton.signature(), kept.n_frames) != (now.skeleton.signature(), now.n_frames):
+            raise UserError(
+                f"{backup} holds another take than {take} ({kept.n_frames} frames against {now.n_frames}, or "
+                "another skeleton): cleaning in place would leave no copy of this one; move the old backup away"
+            )
         print(f"note: {backup} is kept as it is (the take before its first in-place clean)", file=sys.stderr)
         return None
     with atomic_path(backup) as tmp:
