@@ -140,11 +140,24 @@ def test_counts_and_lengths_out_of_range_are_refused_before_any_work(args, needl
     assert exit_.value.code == 2 and needle in capsys.readouterr().err
 
 
+def test_a_joint_never_observed_is_said_to_be_made_up(tmp_path, walk, capsys):
+    from workbench.io import write_bvh
+
+    take = tmp_path / "t.bvh"
+    write_bvh(take, walk)
+    mask = {"format": "mocap-workbench observed mask v1", "frames": walk.n_frames, "missing": {"Head": [[0, 343]]}}
+    (tmp_path / "t.bvh.mask.json").write_text(json.dumps(mask))
+    assert main(["clean", str(take), "-o", str(tmp_path / "o.bvh"), "--engine", "lerp"]) == 0
+    assert "Head: never observed in the take, so the engine could only make it up" in capsys.readouterr().err
+
+
 def test_train_into_a_file_is_refused_before_training(tmp_path, data_root, capsys):
     out = tmp_path / "weights"
     out.write_text("a file")
-    assert main(["train", "kalman-learned", "--dataset", "cmu", "--out", str(out)]) == 2
-    assert "is a file; the weights go into a folder" in capsys.readouterr().err and out.read_text() == "a file"
+    for where in (out, out / "sub"):
+        assert main(["train", "kalman-learned", "--dataset", "cmu", "--out", str(where)]) == 2
+        assert f"{out} is a file; the weights go into a folder" in capsys.readouterr().err
+    assert out.read_text() == "a file"
 
 
 @pytest.mark.usefixtures("data_root")

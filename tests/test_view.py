@@ -165,5 +165,22 @@ def test_a_take_whose_frame_time_is_far_off_is_not_resampled_into_the_memory():
     from workbench.engine.view import frame_times
 
     assert frame_times(300, 30.0, 120.0).size == 1197
-    with pytest.raises(EngineError, match=r"Frame Time \(1000 s\) is wrong"):
-        frame_times(300, 0.001, 120.0)
+    assert frame_times(300, 1.0, 120.0).size == 35881  # a Blender export's 1 s frame time: resampled
+    for fps in (0.001, 0.01):  # 1,000 and 100 s a frame: 36 million frames, and 3.6 million at 2.5 GB an array
+        with pytest.raises(EngineError, match=rf"Frame Time \({1 / fps:g} s\) is\s+wrong"):
+            frame_times(300, fps, 120.0)
+
+
+def test_takes_that_teach_nothing_are_refused_for_training_by_name(walk):
+    from workbench import registry
+
+    engine = registry.create("kalman-learned", pretrained=False)
+    nan = walk.slice(0, 50).channels
+    nan[20, 5] = np.nan
+    for take, trouble in (
+        (walk.slice(0, 1), "has 1 frames"),
+        (walk.slice(0, 50).with_channels(nan), r"\(NaN\) or infinite values in 1 frames, first frame 20"),
+        (walk.slice(0, 50).with_channels(np.repeat(walk.channels[:1], 50, axis=0)), "never moves"),
+    ):
+        with pytest.raises(EngineError, match=f"training take .*{trouble}"):
+            engine.fit([walk.slice(0, 100), take])

@@ -115,6 +115,12 @@ def clean_file(
             "(--keep-reference cleans it with the motion)"
         )
     observation = observed_take(source, motion, observed)
+    never = [motion.skeleton.names[j] for j in np.flatnonzero(~observation.observed.any(axis=0))]
+    if never:
+        notes.append(
+            f"{', '.join(never[:4])}{f' and {len(never) - 4} more' if len(never) > 4 else ''}: never observed in "
+            f"the take, so the engine could only make {'them' if len(never) > 1 else 'it'} up"
+        )
     if fill_suspects:
         from .data.inspection import FILL_REASONS, suspects_missing
 

@@ -637,8 +637,11 @@ def cmd_train(args) -> int:
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.variant)
-    if out.exists() and not out.is_dir():  # found now, not after the training
-        raise UserError(f"--out {out} is a file; the weights go into a folder: name a new or an existing one")
+    for folder in (out, *out.parents):  # a file in the way: found now, not after the training
+        if folder.exists():
+            if not folder.is_dir():
+                raise UserError(f"--out {out}: {folder} is a file; the weights go into a folder: name another")
+            break
     test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
         run = train_engine(

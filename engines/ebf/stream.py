@@ -26,6 +26,7 @@ translations as they came.
 
 from __future__ import annotations
 
+import copy
 from collections import deque
 
 import numpy as np
@@ -82,12 +83,12 @@ class FilterStream:
                 f"engine {engine.spec!r} measures each take's noise over the whole take, so it cannot "
                 "stream; stream with plain 'ebf', or clean the take offline (`workbench clean`)"
             )
-        if abs(fps - engine.fps_) > 1e-6:
+        if not abs(fps - engine.fps_) <= 1e-6:  # (NaN too)
             raise EngineError(
                 f"engine {engine.info.name!r} streams takes at the {engine.fps_:g} fps its weights run at, "
                 f"not {fps:g}; clean the take offline (`workbench clean`), which resamples it"
             )
-        self.engine = engine
+        self.engine = copy.copy(engine)  # its weights kept: the engine may switch to another skeleton's
         self.net = engine.net_.one_window()
         self.layout = Layout.of(body)
         self.fps = float(fps)

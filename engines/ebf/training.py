@@ -68,6 +68,10 @@ class Corpus:
                 continue
             first = rng.integers(0, min(run, n - run + 1))
             out.append(s + np.arange(first, n - run + 1, run))
+        if not out:
+            from workbench.engine import EngineError
+
+            raise EngineError(f"every training take is shorter than {run} frames, the run a training step reads")
         rows = np.concatenate(out)
         return rows[rng.permutation(rows.size)]
 

@@ -592,3 +592,15 @@ def test_a_stream_picks_the_weights_of_its_skeleton_and_runs_at_their_rate(walk,
     assert engine.skeleton_signature_ == walk.skeleton.signature() and stream.push(walk.channels[0]) is None
     with pytest.raises(EngineError, match="streams takes at the 120 fps its weights run at, not 60"):
         engine.stream(walk.skeleton, 60.0)
+    with pytest.raises(EngineError, match="not nan"):
+        engine.stream(walk.skeleton, float("nan"))
+
+
+def test_a_stream_keeps_its_weights_when_its_engine_cleans_another_skeleton(walk, studio_take):
+    engine = registry.create("ebf:bf16=false")
+    stream = engine.stream(walk.skeleton, walk.fps)
+    out = [stream.push(f) for f in walk.channels[:20]]
+    engine.clean(Observation(studio_take.slice(0, 40)))  # the engine now on the Bandai weights
+    out += [stream.push(f) for f in walk.channels[20:]]
+    out = np.array([row for row in out if row is not None] + list(stream.flush()))
+    assert np.abs(out - registry.create("ebf:bf16=false").clean(Observation(walk)).motion.channels).max() < 1e-5

@@ -471,15 +471,29 @@ class Engine:
         Raises
         ------
         EngineError
-            Saying which rule they break, or what the body view refuses (a joint below
-            the body root moving by position channels; the message names the classical
-            engines to clean such takes with).
+            Saying which rule they break (a take of fewer than 2 frames, with NaN or
+            infinite values, or that never moves teaches nothing), or what the body view
+            refuses (a joint below the body root moving by position channels; the
+            message names the classical engines to clean such takes with).
         """
         from .view import model_motion, resample
 
         name = self.info.name
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
+        for i, m in enumerate(motions):
+            broken = ~np.isfinite(m.channels).all(axis=1) if m.n_frames else np.zeros(0, bool)
+            if m.n_frames < 2 or broken.any() or not np.ptp(m.channels, axis=0).any():
+                trouble = (
+                    f"has {m.n_frames} frames"
+                    if m.n_frames < 2
+                    else f"has missing (NaN) or infinite values in {broken.sum()} frames, first frame {broken.argmax()}"
+                    if broken.any()
+                    else "never moves"
+                )
+                raise EngineError(
+                    f"engine {name!r}: training take {m.name or i} {trouble}; train on complete takes of motion"
+                )
         views = [model_motion(m, self.humanoid_overrides) for m in motions]
         if self.skeleton_agnostic:  # each in its own body view; every skeleton must map
             for view in {v.skeleton.signature(): v for v in views}.values():

@@ -183,21 +183,25 @@ def _unwrapped(motion: Motion) -> np.ndarray:
     return X
 
 
-#: the most frames a take may be resampled to (9 hours at 120 fps): a take whose frame
-#: time is off by orders of magnitude (1,000 s a frame) would fill the memory instead
-MAX_RESAMPLED_FRAMES = 4_000_000
+#: the most frames a take may be resampled to (9 hours at 120 fps), and the most a rate
+#: may be raised (a take at 1 fps, as a Blender export that left its frame time at 1 s,
+#: into a 120-fps engine): a take whose frame time is off by orders of magnitude (100 s a
+#: frame) would fill the memory instead
+MAX_RESAMPLED_FRAMES, MAX_RATE_RAISE = 4_000_000, 120.0
 
 
 def frame_times(n_from: int, fps_from: float, fps_to: float) -> np.ndarray:
     """Times of the frames of a take resampled from ``fps_from`` to ``fps_to``, in frames
     of the original: every ``fps_from / fps_to`` frames from its first, and one at its
     last frame where that step does not land on it (so the end is kept). Raises
-    EngineError for more than :data:`MAX_RESAMPLED_FRAMES`."""
+    EngineError for more than :data:`MAX_RESAMPLED_FRAMES`, or a rate raised more than
+    :data:`MAX_RATE_RAISE` times."""
     n = int(np.ceil((n_from - 1) * fps_to / fps_from - 1e-9)) + 1
-    if n > MAX_RESAMPLED_FRAMES:
+    if n > MAX_RESAMPLED_FRAMES or (n > n_from and fps_to > MAX_RATE_RAISE * fps_from):
         raise EngineError(
             f"resampling the take's {n_from:,} frames from {fps_from:g} to {fps_to:g} fps would make {n:,} "
-            f"(at most {MAX_RESAMPLED_FRAMES:,}): if its Frame Time ({1 / fps_from:g} s) is wrong, mend that line"
+            f"(at most {MAX_RESAMPLED_FRAMES:,}, from at least 1 fps): if its Frame Time ({1 / fps_from:g} s) is "
+            "wrong, mend that line"
         )
     return np.minimum(np.arange(n) * (fps_from / fps_to), n_from - 1)
 

@@ -454,7 +454,11 @@ def _hierarchy_text(motion: Motion, digits: int) -> str:
         out.write(f"{ind}\tCHANNELS {len(sk.channels[j])}{''.join(' ' + c for c in sk.channels[j])}\n")
         stack.append((j, depth, True))
         stack.extend((c, depth + 1, False) for c in reversed(children[j]))
-    out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {1.0 / motion.fps:.7f}\n")
+    frame_time = 1.0 / motion.fps
+    text = f"{frame_time:.7f}"  # as exporters write it; to more digits where that would lose the rate
+    if abs(float(text) - frame_time) > 1e-3 * frame_time:
+        text = f"{frame_time:.{digits}g}"
+    out.write(f"MOTION\nFrames: {motion.n_frames}\nFrame Time: {text}\n")
     return out.getvalue()
 
 
