@@ -151,11 +151,12 @@ def cmd_skeleton(args) -> int:
 
     motion = _read(args.take)
     s = motion.skeleton
+    overrides = read_mapping(args.mapping) if args.mapping else None
+    mapping = map_humanoid(s, overrides)  # a mapping it refuses: its one line, before anything is printed
     print(
         f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
     )
-    overrides = read_mapping(args.mapping) if args.mapping else None
-    print(map_humanoid(s, overrides).describe())
+    print(mapping.describe())
     turn = up_turn(motion, overrides)
     up = "+Y" if turn is None else "".join(f"{'+' if v > 0 else '-'}{a}" for a, v in zip("XYZ", turn[1]) if v)
     print(

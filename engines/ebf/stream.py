@@ -139,7 +139,10 @@ class FilterStream:
             return self._push(frame)
 
     def _push(self, frame: np.ndarray) -> np.ndarray | None:
-        raw = np.array(frame, dtype=float).reshape(-1)
+        try:
+            raw = np.array(frame, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raw = np.zeros(0)
         if raw.size != self.width or not np.isfinite(raw).all():
             raise EngineError(f"stream frames must be {self.width} finite channel values (no gaps)")
         row = raw

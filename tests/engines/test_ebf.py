@@ -315,12 +315,13 @@ def test_stream_of_a_take_shorter_than_the_window(ebf_float32, walk):
     assert np.abs(stream.flush() - ebf_float32.clean(obs).motion.channels).max() < 1e-5
 
 
-def test_stream_refuses_gaps(ebf, walk):
+def test_stream_refuses_gaps_and_what_is_no_frame(ebf, walk):
     stream = ebf.stream(walk.skeleton, walk.fps)
     frame = walk.channels[0].copy()
     frame[10] = np.nan
-    with pytest.raises(EngineError):
-        stream.push(frame)
+    for bad in (frame, {"a": 1}, "frame", frame[:-1]):
+        with pytest.raises(EngineError, match="stream frames must be 96 finite channel values"):
+            stream.push(bad)
 
 
 def test_diagnostics_shapes_and_the_root(ebf, walk):

@@ -762,8 +762,11 @@ class Engine:
         asked, self.params = self.params, self.weights_params(manifest, folder)
         try:
             self.load_state_arrays(arrays, manifest)
-        except BaseException:
+        except EngineError as err:
             self.params = asked  # all or nothing: as it was before
+            raise EngineError(f"{folder}: {err}") from None  # (the message names the folder)
+        except BaseException:
+            self.params = asked
             raise
         self.skeleton_signature_ = manifest["skeleton_signature"]
         self.fps_ = float(fps)
