@@ -274,7 +274,9 @@ BACKUP_SUFFIX = ".orig"
 def _back_up(take: Path) -> Path | None:
     """Keep ``take`` as TAKE.orig before it is cleaned over itself (atomically) and return
     that file; an existing backup is kept (None), since it holds the take as it was before
-    the first clean."""
+    the first clean, unless it is of another take (another skeleton or frame count: a new
+    raw take copied over a cleaned one), which raises UserError: the new take would be
+    lost."""
     import shutil
 
     from .io.atomic import atomic_path
