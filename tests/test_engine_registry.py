@@ -175,3 +175,9 @@ def test_train_writes_its_variant_s_folder_with_a_manifest_of_what_it_used(tmp_p
     assert len(training["clips"]) == 36 and all(c.startswith("cmu/") for c in training["clips"])
     assert manifest["test_scores"]["split"] == "test" and manifest["test_scores"]["rms_angle_deg"] > 0
     assert "note: training on the cmu training split" in capsys.readouterr().err
+
+
+def test_an_engine_that_does_not_stream_says_so():
+    assert registry.create("ebf", pretrained=False).streams and not registry.create("kalman").streams
+    with pytest.raises(EngineError, match="engine 'kalman' does not stream: .*ebf, bf and nn stream"):
+        registry.create("kalman").stream(None, 120.0)

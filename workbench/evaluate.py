@@ -687,7 +687,7 @@ def run_long_benchmark(
             )
     for row in result.rows:  # the engines that cleaned it and stream: timed here, in this process
         spec = row["engine"]
-        if "error" in row or not hasattr(registry.create(spec, pretrained=False), "stream"):
+        if "error" in row or not registry.create(spec, pretrained=False).streams:
             continue
         try:
             result.streams.append({"engine": spec, "ms_per_frame": stream_ms_per_frame(registry.create(spec), noisy)})

@@ -443,6 +443,20 @@ class Engine:
         """
         raise NotImplementedError
 
+    @property
+    def streams(self) -> bool:
+        """Whether the engine cleans a live stream, frame by frame (:meth:`stream`)."""
+        return type(self).stream is not Engine.stream
+
+    def stream(self, skeleton: Skeleton, fps: float):
+        """A live cleaner of takes of ``skeleton`` at ``fps``: ``push`` a frame (D,), get a
+        cleaned one back some frames later, ``flush`` the rest. Engines that can override
+        it (``ebf``, ``bf``, ``nn``); here an EngineError saying so."""
+        raise EngineError(
+            f"engine {self.info.name!r} does not stream: it cleans whole takes (`workbench clean`); "
+            "ebf, bf and nn stream"
+        )
+
     # -- skeleton checks ------------------------------------------------------------
     def training_motions(self, motions: Sequence[Motion]) -> list[Motion]:
         """``motions`` as a trained engine's ``fit`` takes them: in their body view,
