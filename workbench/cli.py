@@ -271,36 +271,50 @@ def cmd_corrupt(args) -> int:
 BACKUP_SUFFIX = ".orig"
 
 
+def _clean_record(take: Path) -> Path:
+    """Where ``clean --in-place`` records the SHA-256 of the take it wrote: a hidden file
+    beside it, so that the next in-place clean can tell its own output from a new take."""
+    return take.with_name(f".{take.name}{BACKUP_SUFFIX}.json")
+
+
 def _back_up(take: Path) -> Path | None:
     """Keep ``take`` as TAKE.orig before it is cleaned over itself (atomically) and return
-    that file; an existing backup is kept (None), since it holds the take as it was before
-    the first clean, unless it is of another take (another skeleton or frame count: a new
-    raw take copied over a cleaned one), which raises UserError: the new take would be
-    lost."""
+    that file. An existing backup is kept (None), since it holds the take as it was before
+    the first clean, if ``take`` is what the last in-place clean wrote (its record, else
+    the backup's skeleton and frame count); otherwise UserError: ``take`` is another take
+    (a new raw take copied over a cleaned one), which cleaning would lose."""
     import shutil
 
+    from .engine.weights import sha256_file
+    from .io import read_motion
     from .io.atomic import atomic_path
+    from .io.errors import MotionFileError
 
     backup = take.with_name(take.name + BACKUP_SUFFIX)
-    if backup.exists():
-        from .io import read_motion
-        from .io.errors import MotionFileError
-
+    if not backup.exists():
+        with atomic_path(backup) as tmp:
+            shutil.copy2(take, tmp)
+        return backup
+    try:
+        written = json.loads(_clean_record(take).read_text(encoding="utf-8"))["cleaned_sha256"]
+    except (OSError, ValueError, KeyError, TypeError):  # a backup made before the record was kept
+        written = None
+    if written is not None:
+        other = sha256_file(take) != written
+    else:
         try:
             kept = read_motion(backup)
         except MotionFileError as err:
             raise UserError(f"{backup} cannot be read ({err}); move it away before cleaning {take} in place") from None
         now = read_motion(take)
-        if (kept.skeleton.signature(), kept.n_frames) != (now.skeleton.signature(), now.n_frames):
-            raise UserError(
-                f"{backup} holds another take than {take} ({kept.n_frames} frames against {now.n_frames}, or "
-                "another skeleton): cleaning in place would leave no copy of this one; move the old backup away"
-            )
-        print(f"note: {backup} is kept as it is (the take before its first in-place clean)", file=sys.stderr)
-        return None
-    with atomic_path(backup) as tmp:
-        shutil.copy2(take, tmp)
-    return backup
+        other = (kept.skeleton.signature(), kept.n_frames) != (now.skeleton.signature(), now.n_frames)
+    if other:
+        raise UserError(
+            f"{take} is not the take its last in-place clean wrote (another take copied over it, or an edit), and "
+            f"{backup} holds another: cleaning in place would leave no copy of this one; move the old backup away"
+        )
+    print(f"note: {backup} is kept as it is (the take before its first in-place clean)", file=sys.stderr)
+    return None
 
 
 def cmd_clean(args) -> int:
@@ -347,6 +361,11 @@ def cmd_clean(args) -> int:
             raise
         if backup is not None:
             print(f"note: the raw take is kept as {backup}", file=sys.stderr)
+        if args.in_place:
+            from .engine.weights import sha256_file
+            from .io.atomic import atomic_write_text
+
+            atomic_write_text(_clean_record(source), json.dumps({"cleaned_sha256": sha256_file(source)}) + "\n")
         for note in report.notes:
             print(f"note: {note}", file=sys.stderr)
         print(report)
