@@ -616,6 +616,7 @@ def cmd_train(args) -> int:
     from .data import catalogue, select, share
     from .engine import WEIGHTS_OPTION
     from .engine.base import UNIVERSAL
+    from .io.atomic import file_in_the_way
     from .training import train_engine
 
     spec = args.engine
@@ -659,11 +660,8 @@ def cmd_train(args) -> int:
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
     out = Path(args.out or Path("runs") / engine.variant)
-    for folder in (out, *out.parents):  # a file in the way: found now, not after the training
-        if folder.exists():
-            if not folder.is_dir():
-                raise UserError(f"--out {out}: {folder} is a file; the weights go into a folder: name another")
-            break
+    if (blocking := file_in_the_way(out)) is not None:  # found now, not after the training
+        raise UserError(f"--out {out}: {blocking} is a file; the weights go into a folder: name another")
     test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
         run = train_engine(

@@ -12,6 +12,15 @@ from typing import Iterator
 from .errors import OutputFileError
 
 
+def file_in_the_way(folder: str | Path) -> Path | None:
+    """The file that stands where ``folder`` or one of the folders above it should be
+    (so that it cannot be made), if any: the nearest of them that exists, when it is not
+    a folder."""
+    folder = Path(folder)
+    nearest = next((f for f in (folder, *folder.parents) if f.exists()), None)
+    return nearest if nearest is not None and not nearest.is_dir() else None
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success it replaces ``path``, on any
@@ -26,11 +35,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     path = Path(path)
     tmp = None
     try:
-        for folder in (path.parent, *path.parent.parents):  # a file where a folder should be: say so
-            if folder.exists():
-                if not folder.is_dir():
-                    raise NotADirectoryError(errno.ENOTDIR, f"{folder} is a file, not a folder")
-                break
+        if (blocking := file_in_the_way(path.parent)) is not None:  # say so, not "File exists"
+            raise NotADirectoryError(errno.ENOTDIR, f"{blocking} is a file, not a folder")
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         os.close(fd)
