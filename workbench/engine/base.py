@@ -496,15 +496,7 @@ class Engine:
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
         for i, m in enumerate(motions):
-            broken = ~np.isfinite(m.channels).all(axis=1) if m.n_frames else np.zeros(0, bool)
-            if m.n_frames < 2 or broken.any() or not np.ptp(m.channels, axis=0).any():
-                trouble = (
-                    f"has {m.n_frames} frames"
-                    if m.n_frames < 2
-                    else f"has missing (NaN) or infinite values in {broken.sum()} frames, first frame {broken.argmax()}"
-                    if broken.any()
-                    else "never moves"
-                )
+            if (trouble := _teaches_nothing(m)) is not None:
                 raise EngineError(
                     f"engine {name!r}: training take {m.name or i} {trouble}; train on complete takes of motion"
                 )
@@ -1116,6 +1108,18 @@ class Pipeline(Engine):
         self.weights_used_ = f"{kind} weights " + ", ".join(f"{n} {folder}" for n, _, folder in used) if used else None
         self.spec_used_ = ">".join(s.spec_used_ or s.spec for s in self.stages)
         return CleanResult(result.motion, diagnostics)
+
+
+def _teaches_nothing(motion: Motion) -> str | None:
+    """Why a training take teaches nothing (fewer than 2 frames, NaN or infinite values,
+    no motion at all), in words; None for one that can be trained on."""
+    if motion.n_frames < 2:
+        return f"has {motion.n_frames} frames"
+    X = motion.channels
+    broken = ~np.isfinite(X).all(axis=1)
+    if broken.any():
+        return f"has missing (NaN) or infinite values in {broken.sum()} frames, first frame {broken.argmax()}"
+    return None if np.ptp(X, axis=0).any() else "never moves"
 
 
 def _signature_joints(signature: str) -> list[str]:

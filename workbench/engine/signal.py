@@ -212,7 +212,9 @@ def gaussian_kernel(sigma_frames: float, max_radius: int | None = None) -> np.nd
         The kernel, of radius ``r = round(TRUNCATE * sigma_frames)`` frames (at most
         ``max_radius``).
     """
-    radius = int(min(TRUNCATE * sigma_frames + 0.5, np.inf if max_radius is None else max_radius))
+    radius = int(TRUNCATE * sigma_frames + 0.5)
+    if max_radius is not None:
+        radius = min(radius, max_radius)
     i = np.arange(-radius, radius + 1, dtype=float)
     k = np.exp(-0.5 * (i / sigma_frames) ** 2)
     return k / k.sum()

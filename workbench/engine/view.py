@@ -200,8 +200,8 @@ def frame_times(n_from: int, fps_from: float, fps_to: float) -> np.ndarray:
     if n > MAX_RESAMPLED_FRAMES or (n > n_from and fps_to > MAX_RATE_RAISE * fps_from):
         raise EngineError(
             f"resampling the take's {n_from:,} frames from {fps_from:g} to {fps_to:g} fps would make {n:,} "
-            f"(at most {MAX_RESAMPLED_FRAMES:,}, from at least 1 fps): if its Frame Time ({1 / fps_from:g} s) is "
-            "wrong, mend that line"
+            f"(at most {MAX_RESAMPLED_FRAMES:,}, at a rate raised at most {MAX_RATE_RAISE:g}-fold): if its "
+            f"Frame Time ({1 / fps_from:g} s) is wrong, mend that line"
         )
     return np.minimum(np.arange(n) * (fps_from / fps_to), n_from - 1)
 
