@@ -76,8 +76,9 @@ CITATION = "Mall, Lal, Agrawal, Hajnik, Nguyen, Carr, Kavan, Vouga 2017, Deep re
 class FilterParams(TrainingParams):
     """Parameters of every filter engine (EBF, BF, NN)."""
 
-    #: widest Gaussian on the root's channels, frames, reached when the window is noisy
-    #: (:mod:`.root`; 0: the root passes through, as in the paper)
+    #: widest Gaussian on the root's channels, frames at 120 fps, reached when the window
+    #: is noisy (:mod:`.root`: at other rates the position's lasts as long, the
+    #: rotation's is as many frames; 0: the root passes through, as in the paper)
     root_sigma_frames: float = 5.0
 
     def __post_init__(self) -> None:
@@ -203,7 +204,11 @@ class FilterEngine(WindowEngine):
         if self.params.root_sigma_frames > 0 and Y.shape[0]:
             skeleton = observation.skeleton
             Y[:, :6], sigma = clean_root(
-                Y[:, :6], self.params.root_sigma_frames, skeleton.unit_cm, skeleton.rotation_order(0)
+                Y[:, :6],
+                self.params.root_sigma_frames,
+                skeleton.unit_cm,
+                skeleton.rotation_order(0),
+                observation.motion.fps,
             )
             diagnostics["filter_sigma_frames"][:, :6] = np.repeat(sigma, 3, axis=1)
         return CleanResult(observation.motion.with_channels(rewrap_angles(Y, observation, copy=False)), diagnostics)

@@ -155,8 +155,10 @@ class FilterStream:
         velocity = rotation_rate_dps(
             self._recent[0][3:].reshape(3, 3), root[3:].reshape(3, 3), len(self._recent) - 1, self.fps
         )
-        if self.engine.params.root_sigma_frames > 0 and len(self._recent) >= 3:  # the previous frame's roughness
-            self._window.last()["rough"][:] = roughness(np.stack(list(self._recent)[-3:]), self.unit_cm)[0]
+        if self.engine.params.root_sigma_frames > 0 and len(self._recent) >= 4:  # the roughness of the frame 2 back
+            self._window.arrays["rough"][self._window.count - 2] = roughness(
+                np.stack(list(self._recent)[-4:]), self.unit_cm
+            )[0]
         code = self.net.encode(self.engine.norm_(np.concatenate([values, velocity])))
         frame_fields = dict(code=code, values=values, root=root, rough=np.nan)
         if len(self._recent) == 1:
@@ -203,6 +205,7 @@ class FilterStream:
                 row[None, 3:6],
                 self.engine.params.root_sigma_frames,
                 self.layout.root_order,
+                self.fps,
             )
             row[:6] = root[0]
         self._window.pop()

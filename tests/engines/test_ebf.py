@@ -30,13 +30,14 @@ from engines.ebf.nets import (  # noqa: E402
     local_quadratic_weights,
     offsets_like,
 )
-from engines.ebf.root import NARROW_FRAMES, clean_root  # noqa: E402
+from engines.ebf.root import GATES, NARROW_FRAMES, clean_root, filter_limits  # noqa: E402
 from workbench import metrics, registry  # noqa: E402
 from workbench.core.channels import unwrap_deg  # noqa: E402
 from workbench.core.motion import Observation, angle_columns  # noqa: E402
 from workbench.corruption import parse_corruption  # noqa: E402
 from workbench.engine import EngineError, NotFittedError  # noqa: E402
 from workbench.engine.smoothing import measurement_variance  # noqa: E402
+from workbench.io import read_bvh  # noqa: E402
 
 torch.set_num_threads(1)
 L = 2 * RADIUS + 1
@@ -206,7 +207,7 @@ def test_root_filter_follows_a_turn_through_gimbal_lock_and_sheds_its_noise():
         [clean[:, :3] + rng.normal(0, 0.5 / unit_cm, (F, 3)), matrix_to_euler(R_noisy, "ZYX")], axis=1
     )
     assert np.abs(np.diff(clean[:, 3])).max() > 170  # the channels jump at the lock
-    out, sigma = clean_root(noisy, 5.0, unit_cm, "ZYX")
+    out, sigma = clean_root(noisy, 5.0, unit_cm, "ZYX", 120.0)
 
     def errors(X):
         angle = rotation_angle_deg(R_clean, euler_to_matrix(X[:, 3:], "ZYX"))
@@ -215,8 +216,29 @@ def test_root_filter_follows_a_turn_through_gimbal_lock_and_sheds_its_noise():
     assert np.median(sigma, axis=0).min() > 3.5
     (p_in, r_in, worst_in), (p_out, r_out, worst_out) = errors(noisy), errors(out)
     assert p_out < 0.5 * p_in and r_out < 0.5 * r_in and worst_out < worst_in, (p_in, p_out, r_in, r_out, worst_out)
-    kept, sigma_clean = clean_root(clean, 5.0, unit_cm, "ZYX")
+    kept, sigma_clean = clean_root(clean, 5.0, unit_cm, "ZYX", 120.0)
     assert sigma_clean.max() < NARROW_FRAMES and np.array_equal(kept, clean)
+
+
+def test_root_filter_limits_follow_the_frame_rate():
+    """The position's widest filter keeps its duration, the rotation's gate grows with
+    the frame interval; at 120 fps both are as given."""
+    widest, gates = filter_limits(5.0, 120.0)
+    assert np.array_equal(widest, [5.0, 5.0]) and np.array_equal(gates, GATES)
+    widest, gates = filter_limits(5.0, 30.0)
+    assert np.allclose(widest, [1.25, 5.0]) and np.allclose(gates, [GATES[0], 4 * GATES[1]])
+
+
+def test_a_clean_30_fps_root_is_left_where_it_is(ebf_float32, studio_take, data_root):
+    """At 30 fps a body moves four times as far between frames as at 120, and the
+    120-fps settings read it as noise: they moved this studio take's clean root by 1.08
+    cm on average, and a clean CMU run taken at 30 fps by 5.7 cm."""
+    out = ebf_float32.clean(Observation(studio_take)).motion
+    assert metrics.root_cm(studio_take, out) < 0.05
+    run = read_bvh(data_root / "cmu" / "run" / "09_01.bvh").slice(1)
+    root = run.channels[::4, :6]
+    kept, _ = clean_root(root, 5.0, run.skeleton.unit_cm, run.skeleton.rotation_order(0), 30.0)
+    assert np.linalg.norm(kept[:, :3] - root[:, :3], axis=1).mean() * run.skeleton.unit_cm < 0.2
 
 
 # -- committed weights ---------------------------------------------------------------------
@@ -397,7 +419,6 @@ def test_refuses_another_skeleton_naming_the_ones_it_has_weights_for(ebf, kick, 
         ebf.clean(obs)
     with pytest.raises(EngineError, match="skeleton"):
         ebf.stream(kick.skeleton, kick.fps)
-    from workbench.io import read_bvh
     from workbench.io.bvh import format_bvh
 
     text = format_bvh(walk.slice(0, 60))  # the CMU joints, the first arm joint turning in another order
