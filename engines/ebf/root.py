@@ -62,8 +62,8 @@ def roughness(frames: np.ndarray, unit_cm: float) -> np.ndarray:
     differences of its rotation's steps between frames (the rotation vector of R[t]^T
     R[t+1], small-angle, degrees; over t - 1 .. t + 1) over sqrt 6. A third difference
     leaves out the position's acceleration, which a body's translation is full of (at 30
-    fps 16 times what it is at 120); for the rotation it made no difference at 30 fps
-    and filtered less at 120 (Bandai validation, CMU test; ``docs/studio-data.md``)."""
+    fps 16 times what it is at 120); for the rotation it was level at 30 fps and a little
+    worse at 120 (Bandai validation, CMU train; ``docs/studio-data.md``)."""
     R = frames[:, 3:].reshape(-1, 3, 3)
     step = np.einsum("fji,fjk->fik", R[:-1], R[1:])
     vector = np.rad2deg(0.5 * (step[:, [2, 0, 1], [1, 2, 0]] - step[:, [1, 2, 0], [2, 0, 1]]))
