@@ -17,14 +17,15 @@ test split this made short gaps (``gaps:0.01``) 1.80 -> 1.17 cm ``gap_mpjpe_cm``
 1.16) and 3-s single-joint gaps 9.24 -> 8.56 cm (lerp 9.22). Root channels in gaps
 stay linearly bridged.
 
-Our addition: in takes whose angles are quiet (:func:`workbench.engine.smoothing.angles_are_quiet`:
-less than 0.5 cm of noise, outliers included, as a joint's descendant sees it; a clean
-take, ``angular:0.1``, ``spatial:0.2``), the fill takes over not from the line but from
-the constant-velocity smoother's path across each hole of at most ``smooth_hole_frames``
-(60) with samples on both sides: a cubic spline through clean samples, a smoothing spline
-through slightly noisy ones (the network's input stays linearly bridged, as trained).
-Test split, 3 seeds, ``gap_mpjpe_cm``, line -> smoother: ``gaps:0.01`` 1.265 -> 0.975,
-``drop:0.5`` 0.296 -> 0.244, ``angular:0.1+gaps:0.01`` 1.985 -> 1.739,
+Our addition: in takes whose angles are quiet
+(:func:`workbench.engine.smoothing.angles_are_quiet`: less than 0.5 cm of noise,
+outliers included, as a joint's descendant sees it; a clean take, ``angular:0.1``,
+``spatial:0.2``), the fill takes over not from the line but from the constant-velocity
+smoother's path across each hole of at most ``smooth_hole_frames`` (0.5 s: 60 frames at
+120 fps) with samples on both sides: a cubic spline through clean samples, a smoothing
+spline through slightly noisy ones (the network's input stays linearly bridged, as
+trained). Test split, 3 seeds, ``gap_mpjpe_cm``, line -> smoother: ``gaps:0.01`` 1.265
+-> 0.975, ``drop:0.5`` 0.296 -> 0.244, ``angular:0.1+gaps:0.01`` 1.985 -> 1.739,
 ``spatial:0.2+gaps:0.01`` 2.187 -> 1.893; rms_angle_deg and mpjpe_cm drop too. Under
 more noise the smoother's path across holes of 20-60 frames turns some angles further
 off than the line (every take, ``angular:0.5+gaps:0.01``: ``ebd>ebf`` 1.903 -> 1.955
@@ -36,8 +37,7 @@ of three kinds (``gaps:0.01``; ``gaps:0.002,60``; ``gaps:0.0005,240,480``), each
 with one more joint missing for 2-4 s, and angular noise of 0, 0.1, 0.5 or 0.9 channel
 stds; fresh every epoch. The loss is the mean squared error over the missing entries,
 each channel's error measured in its training std (in degrees, channels near gimbal
-lock with stds of 70 degrees and more drown the rest).
-Use ``ebd>ebf`` to fill and then denoise.
+lock with stds of 70 degrees and more drown the rest). ``ebd>ebf`` fills, then denoises.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ from workbench.engine.smoothing import angles_are_quiet, smooth_and_fill
 from workbench.engine.threads import one_blas_thread
 
 from .base import TrainingParams, WindowEngine
-from .features import RADIUS, FrameData
+from .features import RADIUS, REFERENCE_FPS, FrameData
 
 #: gap models mixed in training
 GAP_MODELS = ("gaps:0.01", "gaps:0.002,60", "gaps:0.0005,240,480")
@@ -92,11 +92,14 @@ class EBD(WindowEngine):
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 32)
         lstm_units: int = trained(32)
         #: frames over which the network's fill takes over from the linear one, from
-        #: each gap edge (0: the network's fill everywhere); see the module docstring
+        #: each gap edge (0: the network's fill everywhere); see the module docstring. At
+        #: every rate: as a duration (10 at 30 fps) it filled Bandai's 0.1-s and 1-2-s
+        #: holes worse (``docs/studio-data.md``, *Frame-counted settings at 30 fps*)
         blend_frames: float = 40.0
-        #: holes up to this long with samples on both sides: the fill takes over from the
-        #: constant-velocity smoother's path instead of the line, in quiet takes (0: the
-        #: line everywhere, the paper); see the module docstring
+        #: holes up to this long (frames at 120 fps: 0.5 s, as long at every rate) with
+        #: samples on both sides: the fill takes over from the constant-velocity
+        #: smoother's path instead of the line, in quiet takes (0: the line everywhere,
+        #: the paper); see the module docstring
         smooth_hole_frames: int = 60
 
         def __post_init__(self) -> None:
@@ -139,10 +142,10 @@ class EBD(WindowEngine):
 
     def _bridge(self, observation: Observation, data: FrameData) -> np.ndarray:
         """(F, C) the angle channels the network's fill takes over from: bridged linearly,
-        or, in holes of at most ``smooth_hole_frames`` with samples on both sides, along
-        the constant-velocity smoother's path where the take's angles are quiet
-        (:func:`workbench.engine.smoothing.angles_are_quiet`)."""
-        L = self.params.smooth_hole_frames
+        or, in holes no longer than ``smooth_hole_frames`` last at 120 fps with samples on
+        both sides, along the constant-velocity smoother's path where the take's angles
+        are quiet (:func:`workbench.engine.smoothing.angles_are_quiet`)."""
+        L = self.params.smooth_hole_frames * observation.motion.fps / REFERENCE_FPS
         holes = data.missing & np.repeat(hole_length(joint_missing(data)) <= L, 3, axis=1)
         if not (L and holes.any() and angles_are_quiet(observation.skeleton, data.X, observation.observed)):
             return data.values

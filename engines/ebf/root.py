@@ -37,13 +37,11 @@ import numpy as np
 
 from workbench.core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 
-from .features import RADIUS, window_index
+from .features import RADIUS, REFERENCE_FPS, window_index
 
 #: noise stds (cm of position, degrees of rotation) at which the filter gets half of its
-#: widest width, at :data:`REFERENCE_FPS`
+#: widest width, at :data:`~.features.REFERENCE_FPS`
 GATES = np.array([0.17, 0.3])
-#: the frame rate the gates and ``max_sigma`` are set at (CMU's, Mall et al.'s)
-REFERENCE_FPS = 120.0
 #: a Gaussian narrower than this (frames) gives its neighbours under 1e-5 of the
 #: weight: the centre frame is kept as it is
 NARROW_FRAMES = 0.2
@@ -76,9 +74,9 @@ def roughness(frames: np.ndarray, unit_cm: float) -> np.ndarray:
 def filter_limits(max_sigma: float, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """The widest widths (2,) in frames and the gates (2,) (cm, degrees) of the position
     and the rotation filters for a take at ``fps``, given ``max_sigma`` frames at
-    :data:`REFERENCE_FPS`: the position's widest filter lasts as long at every rate, the
-    rotation's is as many frames, and its gate scales with the frame interval (chosen on
-    Bandai's 30-fps validation takes; at 120 fps both are as given)."""
+    :data:`~.features.REFERENCE_FPS`: the position's widest filter lasts as long at every
+    rate, the rotation's is as many frames, and its gate scales with the frame interval
+    (chosen on Bandai's 30-fps validation takes; at 120 fps both are as given)."""
     scale = fps / REFERENCE_FPS
     return np.array([max_sigma * scale, max_sigma]), GATES * np.array([1.0, 1.0 / scale])
 
@@ -108,8 +106,8 @@ def smooth_root(
     of L :func:`root_frames` (N, L, 12) of a take at ``fps``, given their
     :func:`roughness` (N, L, 2, 3) (NaN where not known, and for frames outside the take)
     and ``valid`` (N, L), the window frame exists (only those enter); ``max_sigma``:
-    frames at :data:`REFERENCE_FPS` (:func:`filter_limits`). Also the filter widths
-    (N, 2), frames, of the position and the rotation."""
+    frames at :data:`~.features.REFERENCE_FPS` (:func:`filter_limits`). Also the filter
+    widths (N, 2), frames, of the position and the rotation."""
     N, L = valid.shape
     c = L // 2
     noise = _median_of_numbers(rough[:, 1:-2].transpose(0, 2, 1, 3).reshape(N, 2, -1)) * 1.4826

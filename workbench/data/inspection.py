@@ -9,7 +9,8 @@ Five rules that need no ground truth and no engine, each flagging samples (frame
   and above :data:`SPIKE_SCALE` times the joint's median score over the take (a fast
   take at 30 fps predicts worse). Chosen on the CMU train split and the Bandai
   validation split with ``outliers:0.01``.
-- ``turn``: a joint turning faster than a body can (:func:`.quality.reference_glitches`).
+- ``turn``: a joint turning faster than a body can (:func:`.quality.reference_glitches`);
+  silent below 39 fps, where no turn between two frames is faster than a body can.
 - ``jump``: the body root moving faster than a body can between two frames, above
   :data:`JUMP_SPEED_M_S` (a dropped stretch of frames, a marker swap on the pelvis, an
   exporter's stray frames that put the body a kilometre off): the frames it is off its

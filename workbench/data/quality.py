@@ -7,6 +7,12 @@ split, 35_26's right finger base turns 170 degrees in one frame at 120 fps), and
 engine that removes the glitch is scored as wrong by the frames it corrected. Benchmarks
 name these places, so that their scores can be read with that in mind; they do not leave
 them out of the scores.
+
+Below 39 frames per second no turn between two frames can exceed the limit (at 30 fps
+it is 233 degrees a frame; a turn is at most 180): a take that coarse cannot tell a
+flip from a fast turn by speed, so none is named (Bandai's takes). ``workbench
+inspect``'s ``spike`` rule, which asks whether a rotation fits its neighbours, still
+finds such flips there (:mod:`workbench.data.inspection`).
 """
 
 from __future__ import annotations
