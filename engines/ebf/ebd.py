@@ -92,9 +92,9 @@ class EBD(WindowEngine):
         #: LSTM units per direction in each of the two B-LSTM layers (paper: 32)
         lstm_units: int = trained(32)
         #: frames over which the network's fill takes over from the linear one, from
-        #: each gap edge (0: the network's fill everywhere); see the module docstring. At
-        #: every rate: as a duration (10 at 30 fps) it filled Bandai's 0.1-s and 1-2-s
-        #: holes worse (``docs/studio-data.md``, *Frame-counted settings at 30 fps*)
+        #: each gap edge (0: the network's fill everywhere); see the module docstring. As
+        #: many frames at every rate: as a duration (10 at 30 fps) it filled Bandai's 0.1-s
+        #: and 1-2-s holes worse (``docs/studio-data.md``, *Frame-counted settings at 30 fps*)
         blend_frames: float = 40.0
         #: holes up to this long (frames at 120 fps: 0.5 s, as long at every rate) with
         #: samples on both sides: the fill takes over from the constant-velocity

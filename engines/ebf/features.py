@@ -21,7 +21,9 @@ from workbench.engine.smoothing import measurement_variance, smoothing_ratio
 #: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
 RADIUS = 15
 #: the frame rate the family's settings counted in frames were chosen at (CMU's, Mall et
-#: al.'s); each says how it carries to a take at another rate (the Bandai weights run at 30)
+#: al.'s). The networks' window and velocity baseline are learnt at the weights' own rate
+#: (the Bandai weights run at 30) and stay frame counts; the root's filter
+#: (:func:`.root.filter_limits`) and ebd's ``smooth_hole_frames`` carry over by duration
 REFERENCE_FPS = 120.0
 #: frames over which the root's angular velocity is measured (1/15 s at 120 fps)
 VELOCITY_BASELINE = 8

@@ -5,18 +5,19 @@ root through: their noise leaves it clean. Joint-position noise solved back to a
 mpjpe 2.93 cm, the input 1.81; with this filter 1.59).
 
 So each window's root position and rotation get a Gaussian of width ``widest * n^2 /
-(n^2 + gate^2)`` frames, with n the noise found in the window: 1.4826 times the median of
-:func:`roughness` (third differences of the position, cm, and second differences of the
-rotation's frame to frame steps, degrees, each scaled to a white noise's std) over the
-28 frames whose differences lie within the window. A clean CMU root reads about a
-hundredth of a centimetre and a tenth of a degree at 120 fps (walk 02_01: 0.007-0.015
-cm, 0.05-0.17 degrees; taken at 30 fps, 0.06-0.07 cm and 0.17-0.38 degrees); under
-``spatial:1`` n is about 1 cm and 3.6 degrees, under ``spatial-ends:0.5,0.1`` 0.11 cm
-and 0.37 degrees. The gates (:data:`GATES`, 0.17 cm and 0.3 degrees at 120 fps) sit
-between: a clean root is barely touched, a noisy one gets nearly ``widest``,
-``max_sigma`` frames at 120 fps. Rotations are averaged as matrices and projected back
-onto rotations (the chordal mean; Euler channels swing wildly near gimbal lock).
-Everything comes from the window, so a stream gives what offline cleaning gives.
+(n^2 + gate^2)`` frames, with n the noise found in the window: 1.4826 times the median
+of :func:`roughness` (third differences of the position, cm, and differences of the
+rotation's frame to frame steps, second differences of the orientation, degrees, each
+scaled to a white noise's std) over the 28 frames whose differences lie within the
+window. A clean CMU root reads about a hundredth of a centimetre and a tenth of a degree
+at 120 fps (walk 02_01: 0.007-0.015 cm, 0.05-0.17 degrees; taken at 30 fps, 0.06-0.07 cm
+and 0.17-0.38 degrees); under ``spatial:1`` n is about 1 cm and 3.6 degrees, under
+``spatial-ends:0.5,0.1`` 0.11 cm and 0.37 degrees. The gates (:data:`GATES`, 0.17 cm and
+0.3 degrees at 120 fps) sit between: a clean root is barely touched, a noisy one gets
+nearly ``widest``, ``max_sigma`` frames at 120 fps. Rotations are averaged as matrices
+and projected back onto rotations (the chordal mean; Euler channels swing wildly near
+gimbal lock). Everything comes from the window, so a stream gives what offline cleaning
+gives.
 
 At other frame rates (:func:`filter_limits`) the position's widest filter keeps its
 duration (5 frames at 120 fps, 1.25 at 30) and the rotation's gate grows with the frame
@@ -56,9 +57,10 @@ def root_frames(root: np.ndarray, order: str) -> np.ndarray:
 def roughness(frames: np.ndarray, unit_cm: float) -> np.ndarray:
     """(F - 3, 2, 3) the noise frames 1 .. F - 3 of F consecutive :func:`root_frames`
     (F, 12) show, in stds of white noise: the root position's absolute third differences
-    (cm, over the frames t - 1 .. t + 2) over sqrt 20, and the absolute second
-    differences of its rotation's steps between frames (the rotation vector of R[t]^T
-    R[t+1], small-angle, degrees; over t - 1 .. t + 1) over sqrt 6. A third difference
+    (cm, over the frames t - 1 .. t + 2) over sqrt 20, and the absolute differences of
+    its rotation's steps between frames (the rotation vector of R[t]^T R[t+1],
+    small-angle, degrees), second differences of the orientation over t - 1 .. t + 1,
+    over sqrt 6. A third difference
     leaves out the position's acceleration, which a body's translation is full of (at 30
     fps 16 times what it is at 120); for the rotation it was level at 30 fps and a little
     worse at 120 (Bandai validation, CMU train; ``docs/studio-data.md``)."""

@@ -122,7 +122,7 @@ def test_smoothed_holes_last_as_long_at_30_fps(studio_take):
     """On the 30-fps studio weights a hole is bridged along the smoother's path when it
     lasts at most 0.5 s (60 frames at 120 fps), 15 frames: a 10-frame hole is, a
     20-frame one keeps the line (60 frames, 2 s at 30 fps, filled Bandai's validation
-    takes 4 % worse than 15)."""
+    takes worse than 15 on five corruptions of six)."""
     names = list(studio_take.skeleton.names)
     observed = np.ones((studio_take.n_frames, len(names)), bool)
     observed[40:50, names.index("LowerArm_L")] = False

@@ -337,6 +337,18 @@ def test_stream_of_a_take_shorter_than_the_window(ebf_float32, walk):
     assert np.abs(stream.flush() - ebf_float32.clean(obs).motion.channels).max() < 1e-5
 
 
+@pytest.mark.parametrize("n_frames", [1, 2, 3, 4, 5, 16, 20, 30])
+def test_short_takes_stream_as_they_clean(ebf_float32, walk, n_frames):
+    """Takes too short for any roughness of the root (under 4 frames), with one or a few,
+    and takes that start emitting before the flush: the root's filter sees the same
+    window in the stream as offline."""
+    obs = parse_corruption("spatial:1").apply(walk.slice(0, n_frames), seed=1)
+    stream = ebf_float32.stream(walk.skeleton, walk.fps)
+    out = [row for frame in obs.motion.channels if (row := stream.push(frame)) is not None]
+    out = np.array(out + list(stream.flush()))
+    assert np.abs(out - ebf_float32.clean(obs).motion.channels).max() < 1e-4
+
+
 def test_stream_refuses_gaps_and_what_is_no_frame(ebf, walk):
     stream = ebf.stream(walk.skeleton, walk.fps)
     frame = walk.channels[0].copy()
