@@ -173,7 +173,7 @@ def test_the_allocator_keeps_freed_arrays_where_glibc_runs_it():
     assert keep_freed_arrays() is (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
 
 
-def test_a_take_at_one_frame_a_second_is_cleaned_with_a_note_on_its_frame_time(embedded_root, tmp_path):
+def test_a_take_at_1_or_1200_frames_a_second_is_cleaned_with_a_note_on_its_frame_time(embedded_root, tmp_path):
     from workbench.data import find_clip
     from workbench.io import write_bvh
     from workbench.registry import create
@@ -183,6 +183,27 @@ def test_a_take_at_one_frame_a_second_is_cleaned_with_a_note_on_its_frame_time(e
     write_bvh(take, walk.replace(fps=1.0))  # as a Blender export that left its frame time at 1 s
     report = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh")
     (note,) = report.notes
-    assert "runs at 1 fps (Frame Time 1 s)" in note and "mend that line" in note and "4,800 frames" in note
+    assert "runs at 1 fps (Frame Time 1 s), far below" in note and "mend that line" in note and "4,800 frames" in note
+    write_bvh(take, walk.replace(fps=1200.0))  # a digit too many: 0.00083333
+    (note,) = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes
+    assert "runs at 1200 fps" in note and "far above" in note and "to 4 frames" in note
     write_bvh(take, walk)
     assert batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes == ()
+
+
+def test_a_folder_clean_refuses_two_takes_for_one_file_and_files_no_clean_wrote(library, tmp_path, capsys):
+    (library / "walk.BVH").write_bytes((library / "walk.bvh").read_bytes())
+    with pytest.raises(ValueError, match=r"walk\.BVH and .*walk\.bvh would both be cleaned to .*: move or rename"):
+        batch.library_jobs(library, tmp_path / "out")
+    (library / "walk.BVH").unlink()
+    inside = library / "cleaned"  # an output folder inside the takes' folder, holding a raw take
+    inside.mkdir()
+    raw = (library / "jump.bvh").read_bytes()
+    (inside / "walk.bvh").write_bytes(raw)
+    assert main(["clean", str(library), "-o", str(inside), "--engine", "lerp"]) == 2
+    assert "already holds" in capsys.readouterr().err and (inside / "walk.bvh").read_bytes() == raw
+    (inside / "walk.bvh").unlink()  # what a clean wrote there before is its own to write again
+    batch.check_manifest(inside, {"engine": "lerp"}, resume=False)
+    (inside / "walk.bvh").write_bytes(raw)
+    jobs = batch.library_jobs(library, inside)
+    assert sorted(p.relative_to(library).as_posix() for p, _ in jobs) == ["again/walk.bvh", "jump.bvh", "walk.bvh"]

@@ -588,6 +588,33 @@ def test_clean_never_overwrites_its_input_unless_told_and_then_keeps_the_raw_tak
         assert "is not the take its last in-place clean wrote" in capsys.readouterr().err and take.read_bytes() == new
 
 
+def test_corrupt_names_the_file_frame_of_a_missing_value(tmp_path, data_root, capsys):
+    lines = (data_root / "cmu" / "walk" / "02_01.bvh").read_text().splitlines()  # frame 0 a T-pose, dropped
+    frame_12 = next(n for n, line in enumerate(lines) if line.startswith("Frame Time")) + 13
+    lines[frame_12] = "nan " + lines[frame_12].split(" ", 1)[1]
+    (tmp_path / "gappy.bvh").write_text("\n".join(lines) + "\n")
+    assert main(["corrupt", str(tmp_path / "gappy.bvh"), "-o", str(tmp_path / "x.bvh"), "--corrupt", "angular:1"]) == 2
+    assert "gappy.bvh has missing values (NaN) in 1 frame(s), first in frame 12 of the file" in capsys.readouterr().err
+    assert not (tmp_path / "x.bvh").exists()
+
+
+def test_an_in_place_clean_moves_the_mask_it_filled_to_the_raw_take(tmp_path, data_root, capsys):
+    clean = tmp_path / "clean.bvh"
+    clean.write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    take = tmp_path / "take.bvh"
+    assert main(["corrupt", str(clean), "-o", str(take), "--corrupt", "gaps:0.01"]) == 0
+    mask = (tmp_path / "take.bvh.mask.json").read_bytes()
+    assert main(["clean", str(take), "--in-place", "--engine", "lerp", "--resume"]) == 0
+    err = capsys.readouterr().err
+    assert "--resume: for a folder of takes" in err and "the mask moved with the raw take" in err
+    assert not (tmp_path / "take.bvh.mask.json").exists(), "it would mark the filled samples missing"
+    assert (tmp_path / "take.bvh.orig.mask.json").read_bytes() == mask
+    (tmp_path / "take.bvh.mask.json").write_bytes(mask)  # a mask put back beside the cleaned take stays, with a note
+    assert main(["clean", str(take), "--in-place", "--engine", "lerp"]) == 0
+    assert "names the gaps this clean filled" in capsys.readouterr().err
+    assert (tmp_path / "take.bvh.mask.json").exists() and (tmp_path / "take.bvh.orig.mask.json").read_bytes() == mask
+
+
 def test_a_pipeline_says_which_weights_its_stages_used(tmp_path, data_root, capsys):
     take = data_root / "cmu" / "walk" / "02_01.bvh"
     assert main(["clean", str(take), "-o", str(tmp_path / "a.bvh"), "--engine", "ebd>ebf"]) == 0

@@ -88,6 +88,21 @@ def test_a_read_only_folder_keeps_the_earlier_output(tmp_path, take, capsys):
         assert snapshot(disk) == before
 
 
+def test_a_benchmark_whose_json_cannot_be_written_says_so_before_it_runs(tmp_path, monkeypatch, capsys):
+    import workbench.evaluate
+
+    def run_benchmark(*args, **kwargs):
+        raise AssertionError("the benchmark ran")
+
+    monkeypatch.setattr(workbench.evaluate, "run_benchmark", run_benchmark)
+    (tmp_path / "file").write_text("")
+    for bad in (tmp_path, tmp_path / "file" / "scores.json"):  # a folder; a file where a folder should be
+        assert main(["bench", "--engines", "lerp", "--corrupt", "gaps:0.01", "--seeds", "1", "--json", str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert f"{bad}: cannot write it" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"], "no temporary file is left"
+
+
 def test_an_in_place_clean_whose_backup_does_not_fit_leaves_the_take_as_it_was(tmp_path, take, capsys):
     with tmpfs(tmp_path / "disk", 400) as disk:
         raw = take.read_bytes()

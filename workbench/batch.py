@@ -72,6 +72,25 @@ class TakeReport:
 #: capture runs at 24-240 fps, and a take whose exporter left its frame time at 1 s (a
 #: Blender export did) is resampled 120-fold by the engines that work at 120 fps
 LEAST_CAPTURE_FPS = 10.0
+#: ... and above which: body capture rarely runs above 500 fps, and a frame time with a
+#: digit too many (0.00083333 for 0.0083333) has the engines that work at 120 fps keep
+#: one frame in ten and see motion ten times too fast
+MOST_CAPTURE_FPS = 1000.0
+
+
+def _frame_time_note(source: Path, motion) -> str | None:
+    """A note for a take whose frame rate lies outside any capture's (its Frame Time line
+    is likely wrong), else None."""
+    from .engine.base import UNIVERSAL_FPS
+
+    if LEAST_CAPTURE_FPS <= motion.fps <= MOST_CAPTURE_FPS:
+        return None
+    where = "far below" if motion.fps < LEAST_CAPTURE_FPS else "far above"
+    return (
+        f"{source} runs at {motion.fps:g} fps (Frame Time {1 / motion.fps:g} s), {where} any capture's rate; if its "
+        f"exporter wrote the wrong frame time, mend that line: an engine that works at {UNIVERSAL_FPS:g} fps "
+        f"resamples the take to {motion.n_frames * UNIVERSAL_FPS / motion.fps:,.0f} frames"
+    )
 
 
 def clean_file(
@@ -94,15 +113,7 @@ def clean_file(
 
     source, output = Path(source), Path(output)
     motion = read_motion(source)
-    notes = []
-    if motion.fps < LEAST_CAPTURE_FPS:
-        from .engine.base import UNIVERSAL_FPS
-
-        notes.append(
-            f"{source} runs at {motion.fps:g} fps (Frame Time {1 / motion.fps:g} s), far below any capture's "
-            f"rate; if its exporter wrote the wrong frame time, mend that line: an engine that works at "
-            f"{UNIVERSAL_FPS:g} fps resamples the take to {motion.n_frames * UNIVERSAL_FPS / motion.fps:,.0f} frames"
-        )
+    notes = [note] if (note := _frame_time_note(source, motion)) else []
     observed, mask_path = take_mask(source, motion.skeleton, motion.n_frames, mask)
     if mask_path and not mask:
         notes.append(f"using the mask sidecar {mask_path}")
@@ -227,6 +238,39 @@ def _up_to_date(source: Path, output: Path) -> bool:
 
     newest_input = max(p.stat().st_mtime for p in (source, sidecar_path(source)) if p.exists())
     return output.stat().st_mtime >= newest_input
+
+
+def library_jobs(source: Path, out_dir: Path) -> list[tuple[Path, Path]]:
+    """The (take, cleaned take) pairs of ``clean SOURCE -o OUT_DIR``: every .bvh and .amc
+    file below ``source``, outside ``out_dir`` (which may lie inside it), to the same place
+    below ``out_dir`` as .bvh. ValueError, naming the files, when ``source`` holds no take,
+    when two takes would be cleaned to one file (``a.bvh`` and ``a.BVH``, or ``a.bvh`` and
+    ``a.amc``), or when ``out_dir`` holds files where cleaned takes go but no clean has
+    written there (no :data:`MANIFEST`): they are someone's takes, which it would overwrite."""
+    from .data.roots import files_under
+    from .io import MOTION_SUFFIXES
+
+    inside = out_dir.resolve()
+    takes = [
+        p for p in files_under(source) if p.suffix.lower() in MOTION_SUFFIXES and not p.resolve().is_relative_to(inside)
+    ]
+    if not takes:
+        raise ValueError(f"{source} holds no .bvh or .amc file")
+    jobs = [(p, out_dir / p.relative_to(source).with_suffix(".bvh")) for p in takes]
+    first: dict[Path, Path] = {}
+    for take, output in jobs:
+        if output in first:
+            raise ValueError(
+                f"{first[output]} and {take} would both be cleaned to {output}: move or rename one of them"
+            )
+        first[output] = take
+    there = [output for _, output in jobs if output.exists()]
+    if there and not (out_dir / MANIFEST).exists():
+        raise ValueError(
+            f"{out_dir} already holds {there[0]}{f' and {len(there) - 1} more' if len(there) > 1 else ''} where "
+            "cleaned takes go, and no clean wrote them: cleaning would overwrite them; name a new or empty folder"
+        )
+    return jobs
 
 
 def check_manifest(out_dir: Path, settings: dict, resume: bool) -> None:

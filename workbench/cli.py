@@ -253,6 +253,13 @@ def cmd_corrupt(args) -> int:
     if motion.n_frames < recorded.n_frames:
         print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
     source, out = Path(args.input), Path(args.output)
+    missing = ~np.isfinite(motion.channels).all(axis=1)
+    if missing.any():
+        first = int(np.argmax(missing)) + recorded.n_frames - motion.n_frames  # the file's frame number
+        raise UserError(
+            f"{source} has missing values (NaN) in {int(missing.sum())} frame(s), first in frame {first} of the "
+            "file: corrupt makes a test take from a complete, clean one; clean this one first (workbench clean)"
+        )
     mask_path = sidecar_path(out)
     for path in (out, mask_path):
         _refuse_overwriting(path, source, sidecar_path(source), "name another file")
@@ -269,6 +276,11 @@ def cmd_corrupt(args) -> int:
 
 #: the suffix of the raw take ``clean --in-place`` keeps beside it
 BACKUP_SUFFIX = ".orig"
+
+
+def _backup_of(take: Path) -> Path:
+    """Where ``clean --in-place`` keeps the raw ``take``: TAKE.orig beside it."""
+    return take.with_name(take.name + BACKUP_SUFFIX)
 
 
 def _clean_record(take: Path) -> Path:
@@ -290,7 +302,7 @@ def _back_up(take: Path) -> Path | None:
     from .io.atomic import atomic_path
     from .io.errors import MotionFileError
 
-    backup = take.with_name(take.name + BACKUP_SUFFIX)
+    backup = _backup_of(take)
     if not backup.exists():
         with atomic_path(backup) as tmp:
             shutil.copy2(take, tmp)
@@ -317,10 +329,23 @@ def _back_up(take: Path) -> Path | None:
     return None
 
 
+def _move_mask_to_backup(take: Path) -> None:
+    """After ``clean --in-place`` filled the gaps ``take``'s mask sidecar names, move the
+    sidecar beside the raw take's backup, which it describes: left beside the cleaned take
+    it would mark filled samples missing (``inspect``, a later clean). Where the backup
+    has a mask already, the sidecar stays, with a note."""
+    from .io.mask import sidecar_path
+
+    mask, kept = sidecar_path(take), sidecar_path(_backup_of(take))
+    if kept.exists():
+        print(f"note: {mask} names the gaps this clean filled; remove it ({kept} is the raw take's)", file=sys.stderr)
+        return
+    os.replace(mask, kept)
+    print(f"note: the mask moved with the raw take, to {kept}", file=sys.stderr)
+
+
 def cmd_clean(args) -> int:
     from . import registry
-    from .data.roots import files_under
-    from .io import MOTION_SUFFIXES
     from .io.mask import sidecar_path
 
     source = Path(args.input)
@@ -352,6 +377,14 @@ def cmd_clean(args) -> int:
     if not source.is_dir():
         from .batch import clean_file
 
+        ignored = [name for name, value in (("--workers", args.workers), ("--scheduler", args.scheduler)) if value]
+        if args.resume:
+            ignored.append("--resume")
+        if ignored:
+            print(
+                f"note: {', '.join(ignored)}: for a folder of takes; {source} is one take, cleaned here",
+                file=sys.stderr,
+            )
         backup = _back_up(source) if args.in_place else None
         try:
             report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects)
@@ -366,6 +399,8 @@ def cmd_clean(args) -> int:
             from .io.atomic import atomic_write_text
 
             atomic_write_text(_clean_record(source), json.dumps({"cleaned_sha256": sha256_file(source)}) + "\n")
+            if not args.mask and sidecar_path(source).exists():
+                _move_mask_to_backup(source)
         for note in report.notes:
             print(f"note: {note}", file=sys.stderr)
         print(report)
@@ -374,14 +409,13 @@ def cmd_clean(args) -> int:
         raise UserError("--mask is one take's mask; in a folder each take's own INPUT.mask.json is used")
     if output.resolve() == source.resolve() or output.exists() and not output.is_dir():
         raise UserError(f"-o {output}: for a folder of takes, name another folder for the cleaned ones")
-    takes = [
-        p
-        for p in files_under(source)
-        if p.suffix.lower() in MOTION_SUFFIXES and not p.resolve().is_relative_to(output.resolve())
-    ]
-    if not takes:
-        raise UserError(f"{source} holds no .bvh or .amc file")
-    return _clean_library(args, engine.spec, [(p, output / p.relative_to(source).with_suffix(".bvh")) for p in takes])
+    from .batch import library_jobs
+
+    try:
+        jobs = library_jobs(source, output)
+    except ValueError as err:
+        raise UserError(str(err)) from None
+    return _clean_library(args, engine.spec, jobs)
 
 
 def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
@@ -530,6 +564,10 @@ def cmd_bench(args) -> int:
     from .evaluate import run_benchmark
 
     specs = split_engine_specs(args.engines)
+    if args.json:  # before the benchmark's minutes, not after
+        from .io.atomic import check_writable
+
+        check_writable(args.json)
     if args.long:
         return _bench_long(args, specs)
     chosen = _bench_clips(args)

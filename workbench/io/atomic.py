@@ -35,11 +35,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     path = Path(path)
     tmp = None
     try:
-        if (blocking := file_in_the_way(path.parent)) is not None:  # say so, not "File exists"
-            raise NotADirectoryError(errno.ENOTDIR, f"{blocking} is a file, not a folder")
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
+        tmp = _temporary_beside(path)
         umask = os.umask(0)
         os.umask(umask)
         yield Path(tmp)
@@ -52,6 +48,29 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     finally:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def _temporary_beside(path: Path) -> str:
+    """An empty temporary file made beside ``path`` (its folders made first); OSError
+    where that cannot be."""
+    if (blocking := file_in_the_way(path.parent)) is not None:  # say so, not "File exists"
+        raise NotADirectoryError(errno.ENOTDIR, f"{blocking} is a file, not a folder")
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, f"{path} is a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    return tmp
+
+
+def check_writable(path: str | Path) -> None:
+    """Raise :class:`OutputFileError` unless :func:`atomic_path` could write ``path`` now
+    (a temporary file made beside it, and removed): for a command that writes its output
+    after minutes of work."""
+    try:
+        os.unlink(_temporary_beside(Path(path)))
+    except OSError as err:
+        raise OutputFileError(path, err) from None
 
 
 def atomic_write_text(path: str | Path, text: str) -> None:
