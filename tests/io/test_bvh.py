@@ -276,6 +276,41 @@ def test_unknown_channel(walk, tmp_path):
     _expect(tmp_path, text, "unknown channel name 'Wrotation'")
 
 
+def test_a_frame_time_faster_than_any_capture_is_a_damaged_line(walk, tmp_path):
+    text = _small(walk)
+    old = next(line for line in text.splitlines() if line.startswith("Frame Time:"))
+    _expect(tmp_path, text.replace(old, "Frame Time: 1e-300"), "1e\\+300 frames a second, faster than any capture")
+
+
+def test_a_blank_line_among_the_frames_is_named_before_the_frame_count(walk, tmp_path):
+    lines = _small(walk).splitlines()
+    first = lines.index(next(line for line in lines if line.startswith("Frame Time:"))) + 2  # 1-based
+    lines.insert(first + 1, "")  # after frame 1
+    _expect(tmp_path, "\n".join(lines) + "\n", "a blank line among the frame lines: delete it", line=first + 2)
+
+
+def test_what_other_exporters_write_reads_and_names_keep_their_bytes(walk, tmp_path):
+    text = _small(walk)
+    p = tmp_path / "bom.bvh"
+    p.write_bytes(b"\xef\xbb\xbf" + text.encode())  # a byte order mark
+    assert np.allclose(read_bvh(p).channels, read_bvh_text(tmp_path, text).channels)
+    p.write_text(text.replace("Zrotation Yrotation Xrotation", "ZROTATION yrotation Xrotation"))
+    assert read_bvh(p).skeleton.channels == read_bvh_text(tmp_path, text).skeleton.channels
+    name = walk.skeleton.names[1]
+    raw = text.encode().replace(f"JOINT {name}".encode(), f"JOINT {name}\xe9".encode("latin-1"))  # not UTF-8
+    p.write_bytes(raw)
+    motion = read_bvh(p)
+    assert motion.skeleton.names[1] == f"{name}\xe9" and motion.skeleton.text_encoding == "latin-1"
+    write_bvh(tmp_path / "out.bvh", motion)
+    assert f"JOINT {name}\xe9\n".encode("latin-1") in (tmp_path / "out.bvh").read_bytes()
+
+
+def read_bvh_text(tmp_path, text):
+    p = tmp_path / "plain.bvh"
+    p.write_text(text)
+    return read_bvh(p)
+
+
 def test_zero_frames(walk, tmp_path):
     text = _small(walk)
     head = text[: text.index("MOTION")]

@@ -43,7 +43,10 @@ class Skeleton:
     offset (3,)) for each End Site; unit_cm: cm per unit; translated: the non-root joints,
     ascending, whose translation ``Motion.translations`` animates (they have position
     channels); file_offsets: (J, 3) the OFFSET lines of the file (default ``offsets``;
-    only the rows of joints with position channels may differ, as FK ignores those lines).
+    only the rows of joints with position channels may differ, as FK ignores those lines);
+    text_encoding: how the file's joint names were encoded, and how a take of this
+    skeleton is written (``"utf-8"``; ``"latin-1"`` for a file that is not UTF-8, whose
+    names' bytes are then written back as they were).
     """
 
     names: tuple[str, ...]
@@ -54,6 +57,7 @@ class Skeleton:
     unit_cm: float = field(default=0.0)
     translated: tuple[int, ...] = ()
     file_offsets: np.ndarray | None = None
+    text_encoding: str = "utf-8"
 
     def __post_init__(self) -> None:
         J = len(self.names)

@@ -2,7 +2,9 @@
 
 Reads any BVH whose joints carry three rotation channels or none and three position
 channels or none, in any order on any joint (MotionBuilder exports all six on every
-joint): CRLF, LF and mixed line endings, tabs or spaces. A joint's position channels
+joint): CRLF, LF and mixed line endings, tabs or spaces, a UTF-8 byte order mark, channel
+names in any case; joint names in UTF-8, or in any other encoding, read as Latin-1 and
+written back byte for byte (:attr:`Skeleton.text_encoding`). A joint's position channels
 replace its OFFSET as its local translation, as Blender reads them; where they hold one
 value throughout the take it is folded into the skeleton, where they vary the joint is
 translated (:mod:`workbench.core.skeleton`). Angles stay in degrees, lengths in the
@@ -27,7 +29,7 @@ from ..core.motion import Motion
 from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from .atomic import atomic_path
 from .errors import MotionFileError
-from .limits import MAX_JOINTS, Lines
+from .limits import MAX_JOINTS, MIN_FRAME_TIME, Lines
 
 
 class _Tokens:
@@ -88,6 +90,9 @@ class _Tokens:
 
 #: a header token
 _WORD = re.compile(r"\S+")
+#: the channel names, by their lower case: exporters differ in case (``XROTATION``,
+#: ``xrotation``); a take is written back in the standard's (``Xrotation``)
+_CHANNEL_NAMES = {name.lower(): name for name in ROTATION_CHANNELS + POSITION_CHANNELS}
 
 
 def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
@@ -136,9 +141,9 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
                 raise MotionFileError(
                     path, f"joint {name!r}: CHANNELS says {int(count)} but names {len(chans)}, then {ch!r}", cline
                 )
-            if ch not in ROTATION_CHANNELS + POSITION_CHANNELS:
+            if ch.lower() not in _CHANNEL_NAMES:
                 raise MotionFileError(path, f"joint {name!r}: unknown channel name {ch!r}", cline)
-            chans.append(ch)
+            chans.append(_CHANNEL_NAMES[ch.lower()])
         channels.append(tuple(chans))
         try:
             Skeleton._validate_channels(name, tuple(chans))
@@ -212,6 +217,13 @@ def _parse_motion(
         raise MotionFileError(path, f"'Frame Time:' must be a number, found {ft_text!r}", start + 2) from None
     if not frame_time > 0 or not np.isfinite(frame_time):
         raise MotionFileError(path, f"'Frame Time:' must be positive, found {ft_text!r}", start + 2)
+    if frame_time < MIN_FRAME_TIME:
+        raise MotionFileError(
+            path,
+            f"'Frame Time: {ft_text}' is {1 / frame_time:.3g} frames a second, faster than any capture; mend that "
+            "line (the time from one frame to the next, in seconds: 0.0083333 at 120 fps)",
+            start + 2,
+        )
 
     D = sum(len(ch) for ch in skeleton.channels)
     values = _compiled_frames(lines.rest(), n_frames, D)
@@ -272,6 +284,11 @@ def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, pat
     :class:`MotionFileError` naming the line for anything else."""
     while body and not body[-1].strip():
         body.pop()
+    blank = next((n for n, line in enumerate(body) if not line.strip()), None)
+    if blank is not None:  # before the count, which it throws off
+        raise MotionFileError(
+            path, f"a blank line among the frame lines: delete it, or put a frame's {D} values there", first + blank
+        )
     if len(body) < n_frames:
         raise MotionFileError(
             path,
@@ -289,7 +306,7 @@ def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, pat
     for n, line in enumerate(body):  # a line at a time: memory of the values, not of their words
         text = line.strip()
         try:
-            row = _numbers(text) if text else np.empty(0)  # numpy reads a blank line as [-1.0]
+            row = _numbers(text)
         except ValueError:
             bad = next((w for w in text.split() if not _is_number(w)), None)
             what = f"{bad!r} is not a number" if bad else "values must be separated by spaces or tabs"
@@ -329,7 +346,7 @@ def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
     path = Path(path)
     lines = Lines(path)
     tokens = _Tokens(lines, str(path))
-    header = _parse_hierarchy(tokens)
+    header = _parse_hierarchy(tokens).replace(text_encoding=lines.encoding)
     if tokens.motion_line is None:
         raise MotionFileError(path, "no MOTION section: the file ends after the hierarchy", tokens.lines_read)
     frame_time, values = _parse_motion(tokens.motion_text, lines, tokens.motion_line, header, str(path))
@@ -525,7 +542,7 @@ def format_bvh(motion: Motion, digits: int = DIGITS) -> str:
     missing (NaN) values."""
     out = io.BytesIO()
     _write_bvh_to(out, motion, _finite_values(motion), digits)
-    return out.getvalue().decode("utf-8")
+    return out.getvalue().decode(motion.skeleton.text_encoding)
 
 
 def _finite_values(motion: Motion) -> np.ndarray:
@@ -539,7 +556,7 @@ def _finite_values(motion: Motion) -> np.ndarray:
 def _write_bvh_to(out: BinaryIO, motion: Motion, values: np.ndarray, digits: int) -> None:
     """Write the BVH file of a motion, whose :func:`motion_values` are ``values``, to the
     binary file ``out``: its :func:`_hierarchy_text`, then its frame lines."""
-    out.write(_hierarchy_text(motion, digits).encode("utf-8"))
+    out.write(_hierarchy_text(motion, digits).encode(motion.skeleton.text_encoding))
     _write_frame_lines(out, values, digits)
 
 

@@ -4,6 +4,7 @@ rather than minutes and gigabytes."""
 
 from __future__ import annotations
 
+import codecs
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -17,13 +18,17 @@ MAX_LINE_CHARS = 4 << 20
 #: the most joints (bones) a skeleton may have: studio skeletons with faces and fingers
 #: have a few hundred
 MAX_JOINTS = 10_000
+#: the shortest frame time a motion file may give (seconds): 100,000 frames a second,
+#: far above any capture's rate; a shorter one is a damaged line, not a take
+MIN_FRAME_TIME = 1e-5
 #: bytes decoded and split into lines at a time by :class:`Lines`
 _CHUNK_BYTES = 1 << 20
 
 
 class Lines:
     """The lines of a motion file, split as ``str.splitlines`` splits them (any line
-    ends; bytes that are not UTF-8 replaced), decoded and split a megabyte at a time as
+    ends; a UTF-8 byte order mark skipped; from the first megabyte that is not UTF-8 on,
+    read as Latin-1: :attr:`encoding`), decoded and split a megabyte at a time as
     they are asked for: a reader that stops early (a bad header) never decodes the rest,
     and one that meets a block of frame numbers can hand its bytes (:meth:`rest`) to a
     compiled parser instead.
@@ -61,9 +66,16 @@ class Lines:
         by LF) and everything before it was UTF-8; None otherwise."""
         done = self._progress
         given = done.chunk[: done.given]
-        if not given.endswith("\n") or "\ufffd" in given:  # a replaced byte re-encodes to another length
+        if not given.endswith("\n") or done.encoding != "utf-8":
             return None
         return self.raw, done.start + len(given.encode("utf-8"))
+
+    @property
+    def encoding(self) -> str:
+        """How the lines given out so far were decoded: ``"utf-8"``, or ``"latin-1"``
+        once a megabyte of the file was not UTF-8 (each byte one character, so that text
+        encoded back with it is the file's bytes)."""
+        return self._progress.encoding
 
 
 @dataclass
@@ -76,14 +88,22 @@ class _Progress:
     end: int = 0
     chunk: str = ""
     given: int = 0
+    encoding: str = "utf-8"
 
 
 def _split(raw: bytes, done: _Progress, path) -> Iterator[str]:
     """The lines of ``raw`` for :class:`Lines`, recording its progress in ``done``."""
+    if raw.startswith(codecs.BOM_UTF8):  # a UTF-8 byte order mark, which some editors write
+        done.end = len(codecs.BOM_UTF8)
     while done.end < len(raw):
         cut = raw.find(b"\n", done.end + _CHUNK_BYTES)  # after a newline: no CRLF or UTF-8 sequence split
         done.start, done.end = done.end, len(raw) if cut < 0 else cut + 1
-        done.chunk, done.given = raw[done.start : done.end].decode("utf-8", errors="replace"), 0
+        try:
+            done.chunk = raw[done.start : done.end].decode(done.encoding)
+        except UnicodeDecodeError:
+            done.encoding = "latin-1"
+            done.chunk = raw[done.start : done.end].decode(done.encoding)
+        done.given = 0
         for line, whole in zip(done.chunk.splitlines(), done.chunk.splitlines(keepends=True)):
             done.count += 1
             done.given += len(whole)
