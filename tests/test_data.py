@@ -1,5 +1,6 @@
 import json
 
+import numpy as np
 import pytest
 
 from workbench.data import (
@@ -53,6 +54,12 @@ def test_reference_frame_is_dropped(clips):
     assert daz.load().n_frames == daz.frames - 1
     motion = clip.load()  # no T-pose left: nothing more is dropped
     assert without_reference_frame(motion) is motion
+    raw = clip.load(keep_reference=True)
+    channels = raw.channels.copy()
+    channels[1, 10] = np.nan  # a missing sample in frame 1 does not hide the T-pose before it
+    assert without_reference_frame(raw.with_channels(channels)).n_frames == clip.frames - 1
+    channels[1:] = np.nan  # nor does a take missing everything after it
+    assert without_reference_frame(raw.with_channels(channels)).n_frames == clip.frames - 1
 
 
 def test_reference_glitches_are_turns_faster_than_a_body_can(walk):

@@ -52,6 +52,13 @@ def test_gaps_filled_linearly_in_the_file_are_found(embedded_walk, tmp_path):
     assert not inspect_motion(embedded_walk).flags["linear"].any()
 
 
+def test_a_reference_node_the_exporter_moves_in_a_line_is_no_linear_fill(clips):
+    take = next(c for c in clips if c.id == "bandai/walk/dataset-1_walk_normal_002").load()
+    assert take.skeleton.root_chain == (0, 1)  # joint_Root carries the Hips, in a straight line here
+    assert np.ptp(take.root_positions, axis=0).max() > 10 / take.skeleton.unit_cm
+    assert not inspect_motion(take).flags["linear"].any()
+
+
 def test_a_flip_is_a_turn(embedded_walk):
     angles = embedded_walk.angles_deg.copy()
     j = embedded_walk.skeleton.index("LeftForeArm")

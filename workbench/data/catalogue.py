@@ -8,7 +8,8 @@ the suffix, e.g. ``cmu/walk/02_01``.
 Reference frames: the cgspeed conversions put a T-pose (rest) frame in frame 0 that was
 never captured. :meth:`Clip.load` drops it when frame 0 looks like one: the body root's
 rotation is exactly zero and its joint angles are on average less than half of
-frame 1's. ``Clip.load(keep_reference=True)`` keeps every frame.
+frame 1's (of the first later frame with any angle observed, missing ones left out).
+``Clip.load(keep_reference=True)`` keeps every frame.
 
 Splits: ``workbench/data/splits/<dataset>.json`` lists the test clips of a dataset
 (whole subjects held out); every other clip of that dataset is training data. Clips of
@@ -80,8 +81,13 @@ def has_reference_frame(motion: Motion) -> bool:
     a, body = motion.angles_deg, angle_joints(motion.skeleton)
     if motion.n_frames < 3 or not len(body):  # (a lone root has no body pose to tell by)
         return False
-    root_zero = np.all(a[0, motion.skeleton.body_root] == 0.0)
-    return bool(root_zero and np.mean(np.abs(a[0, body])) < 0.5 * np.mean(np.abs(a[1, body])))
+    if not np.all(a[0, motion.skeleton.body_root] == 0.0):
+        return False
+    later = np.abs(a[1:, body]).reshape(motion.n_frames - 1, -1)
+    seen = np.flatnonzero(np.isfinite(later).any(axis=1))  # missing samples (NaN) tell nothing
+    if not seen.size:  # nothing after it: frame 0 is all there is, and not motion
+        return True
+    return bool(np.nanmean(np.abs(a[0, body])) < 0.5 * np.nanmean(later[seen[0]]))
 
 
 def without_reference_frame(motion: Motion) -> Motion:

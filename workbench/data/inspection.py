@@ -17,7 +17,9 @@ Five rules that need no ground truth and no engine, each flagging samples (frame
   path, on the body root (:func:`jump_flags`).
 - ``linear``: a moving joint whose channels lie exactly on a line, to the file's printed
   precision, for at least :data:`LINEAR_MIN_FRAMES` frames: a gap an exporter filled by
-  linear interpolation (real motion always bends).
+  linear interpolation (real motion always bends). Not a reference node above the body
+  root (MotionBuilder's ``joint_Root``): the exporter moves it, and three Bandai takes
+  carry it along a straight line.
 - ``bone``: a translated joint (position channels) other than the body root whose bone
   length leaves its median by more than :data:`BONE_TOLERANCE` (a stretchy rig, a solver
   that lets bones grow).
@@ -161,6 +163,7 @@ def linear_flags(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     np.logical_and.at(all_straight, (slice(None), cols), straight)
     np.logical_or.at(any_moving, (slice(None), cols), moving)
     inner = all_straight & any_moving
+    inner[:, list(motion.skeleton.root_chain[:-1])] = False  # reference nodes: no capture to fill
     for j in np.flatnonzero(inner.any(0)):
         for run in runs(np.flatnonzero(inner[:, j])):
             if run.size >= LINEAR_MIN_FRAMES:
