@@ -434,6 +434,35 @@ def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_ro
     assert "to train, leave it out" in capsys.readouterr().err
 
 
+def test_train_refuses_before_training_what_would_lose_weights(tmp_path, data_root, monkeypatch, capsys):
+    from workbench import registry
+
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "a.bvh").write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    data = ["--data", str(takes)]
+    committed = registry.create("kalman-learned").default_weights_dir() / "cmu"
+    before = {p.name: p.read_bytes() for p in committed.iterdir()}
+    refusals = [
+        (["kalman", *data], "engine 'kalman' has nothing to train"),
+        (["kalman-learned", "--epochs", "1", *data], "fitted in closed form, not in epochs: leave out --epochs"),
+        (["kalman-learned", *data, "--out", str(committed)], "is among the committed weights"),
+        (["kalman-learned", *data, "--promote"], "--promote replaces the committed weights of a data set"),
+    ]
+    for args, message in refusals:
+        assert main(["train", *args]) == 2
+        assert message in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in committed.iterdir()} == before
+    monkeypatch.chdir(tmp_path)
+    for folder in ("kalman-learned", "kalman-learned-2"):  # the default folder, numbered where one is there
+        assert main(["train", "kalman-learned", *data]) == 0
+        assert f"weights=runs/{folder}'" in capsys.readouterr().out
+    manifest = (tmp_path / "runs" / "kalman-learned" / "manifest.json").read_bytes()
+    assert main(["train", "kalman-learned", *data, "--out", "runs/kalman-learned"]) == 2
+    assert "holds weights already" in capsys.readouterr().err
+    assert (tmp_path / "runs" / "kalman-learned" / "manifest.json").read_bytes() == manifest
+
+
 def test_clean_picks_the_weights_of_the_take_s_skeleton_with_no_flag(tmp_path, data_root):
     """A Bandai take (30 fps, Hips under joint_Root) cleaned by a trained engine uses its
     Bandai weights, and comes back in its own skeleton and rate, the reference node kept."""
@@ -475,7 +504,8 @@ def test_train_pools_the_skeletons_a_universal_variant_maps_and_records_both_ter
     assert main(["clean", str(kick), "-o", str(refused), "--engine", engine, "--mapping", str(mapping)]) == 2
     assert "left_thigh" in capsys.readouterr().err and not refused.exists()
     plain = "cae:frames_per_epoch=512,window_frames=64,batch_size=4,pose_copies=0"
-    assert main(["train", plain, "--dataset", "cmu,bandai", "--share", "5", "--epochs", "1", "--out", str(out)]) == 0
+    plain_out = str(tmp_path / "plain")
+    assert main(["train", plain, "--dataset", "cmu,bandai", "--share", "5", "--epochs", "1", "--out", plain_out]) == 0
     assert "`cae:universal=true` trains on several" in capsys.readouterr().err
 
 

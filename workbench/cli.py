@@ -649,20 +649,56 @@ COMMITTED_WEIGHTS_DATASET = "cmu"
 COMMITTED_UNIVERSAL_DATASETS = "cmu,bandai"
 
 
+def _weights_out(named: str | None, engine) -> Path:
+    """The folder ``train`` saves ``engine``'s weights into: ``--out`` (``named``), checked
+    before the training, or ``runs/VARIANT``, numbered ``runs/VARIANT-2`` and on where that
+    holds weights already. UserError for a folder that cannot take them: one below a file,
+    an unwritable one, one among the engine's committed weights (they change only by
+    ``--promote``), or a named one that holds weights (a training's minutes, lost)."""
+    from .engine.weights import MANIFEST_FILE, WEIGHTS_FILE
+    from .io.atomic import file_in_the_way
+
+    def has_weights(folder: Path) -> bool:
+        return (folder / MANIFEST_FILE).exists() or (folder / WEIGHTS_FILE).exists()
+
+    if named is None:
+        out, n = Path("runs") / engine.variant, 1
+        while has_weights(out):
+            n += 1
+            out = Path("runs") / f"{engine.variant}-{n}"
+    else:
+        out = Path(named)
+    if (blocking := file_in_the_way(out)) is not None:
+        raise UserError(f"--out {out}: {blocking} is a file; the weights go into a folder: name another")
+    if out.resolve().is_relative_to(committed := engine.default_weights_dir().parent):
+        raise UserError(
+            f"--out {out} is among the committed weights ({committed}): train into another folder (--promote "
+            "then replaces the committed weights of its data set)"
+        )
+    if has_weights(out):
+        raise UserError(f"--out {out} holds weights already: name another folder, or move those away")
+    nearest = next(f for f in (out, *out.resolve().parents) if f.exists())
+    if not os.access(nearest, os.W_OK | os.X_OK):
+        raise UserError(f"--out {out}: {nearest} cannot be written: name another folder")
+    return out
+
+
 def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, select, share
     from .engine import WEIGHTS_OPTION
     from .engine.base import UNIVERSAL
-    from .io.atomic import file_in_the_way
     from .training import train_engine
 
-    spec = args.engine
-    if args.epochs is not None:
-        spec += ("," if ":" in spec else ":") + f"epochs={args.epochs}"
-    engine = registry.create(spec, pretrained=False)
+    engine = registry.create(args.engine, pretrained=False)
     if not engine.info.trainable:
         raise UserError(f"engine {engine.info.name!r} has nothing to train")
+    if args.epochs is not None:
+        if not hasattr(engine.params, "epochs"):
+            raise UserError(f"{engine.info.name} is fitted in closed form, not in epochs: leave out --epochs")
+        engine = registry.create(
+            args.engine + ("," if ":" in args.engine else ":") + f"epochs={args.epochs}", pretrained=False
+        )
     if engine.weights_folder is not None:
         raise UserError(
             f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
@@ -696,10 +732,16 @@ def cmd_train(args) -> int:
         pooled = f" (`{universal}` trains on several)" if hasattr(engine.params, UNIVERSAL) else ""
         print(f"note: training on the {len(used)} clips of the first clip's skeleton only{pooled}", file=sys.stderr)
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
+    if args.promote:  # where the promoted weights go, before the training
+        named = [name.strip() for name in dataset.split(",")] if dataset else []  # in the order given
+        pooled = [d for d in named if any(c.dataset == d for c, _ in used)] or [used[0][0].dataset]
+        if not all(pooled):
+            raise UserError(
+                "--promote replaces the committed weights of a data set of the catalogue (--dataset NAME); "
+                "weights trained on a folder of takes stay in --out: clean with them by weights=DIR"
+            )
+    out = _weights_out(args.out, engine)
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
-    out = Path(args.out or Path("runs") / engine.variant)
-    if (blocking := file_in_the_way(out)) is not None:  # found now, not after the training
-        raise UserError(f"--out {out}: {blocking} is a file; the weights go into a folder: name another")
     test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
         run = train_engine(
@@ -721,8 +763,6 @@ def cmd_train(args) -> int:
     if args.promote:
         import shutil
 
-        named = [name.strip() for name in dataset.split(",")] if dataset else []  # in the order given
-        pooled = [d for d in named if any(c.dataset == d for c, _ in used)] or [used[0][0].dataset]
         dest = engine.default_weights_dir() / "+".join(pooled)  # cmu/, or cmu+bandai/ for pooled data
         dest.mkdir(parents=True, exist_ok=True)
         for f in out.iterdir():
@@ -1045,15 +1085,17 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .app.defaults import DEFAULT_CLIP, DEFAULT_CORRUPTION, DEFAULT_ENGINES
 
-    def take_opts(sp):
+    def take_opts(sp, remembered: bool = False):
+        """The take's arguments; ``remembered``: the app's, whose defaults are the last session's."""
+        last = "the last session's, else " if remembered else ""
         sp.add_argument(
-            "clip", nargs="?", default=DEFAULT_CLIP, help=f"clip id or BVH/AMC file (default {DEFAULT_CLIP})"
+            "clip", nargs="?", default=DEFAULT_CLIP, help=f"clip id or BVH/AMC file (default {last}{DEFAULT_CLIP})"
         )
         sp.add_argument(
             "--corrupt",
             default=DEFAULT_CORRUPTION,
             metavar="SPEC",
-            help=f"corruption of a clean take, 'none' for a noisy one (default {DEFAULT_CORRUPTION})",
+            help=f"corruption of a clean take, 'none' for a noisy one (default {last}{DEFAULT_CORRUPTION})",
         )
         sp.add_argument("--seed", type=_whole_number(0), default=0)
         sp.add_argument(
@@ -1066,7 +1108,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser(
         "gui", help="open the desktop app (also: workbench with no arguments); with no take, the last one shown"
     )
-    take_opts(sp)
+    take_opts(sp, remembered=True)
     sp.add_argument(
         "--measure-fps",
         type=float,
@@ -1097,7 +1139,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_report)
 
     sp = sub.add_parser("screenshots", help="regenerate the app's screenshots")
-    sp.add_argument("--out", default="screenshots", metavar="DIR")
+    sp.add_argument(
+        "--out", default="screenshots", metavar="DIR", help="where to write them (default screenshots/, the README's)"
+    )
     sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default as for gui)")
     sp.set_defaults(func=cmd_screenshots)
     return p

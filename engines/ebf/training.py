@@ -165,6 +165,7 @@ def train(
     except (RuntimeError, TypeError):
         opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
     corpus = make_corpus(0)
+    starts = corpus.run_starts(run, rng)  # takes too short for a run are refused before the bar is drawn
     total = epochs * math.ceil(corpus.n_runs(run) / segments)
     warmup = max(1, total // 50)
     history: list[float] = []
@@ -174,8 +175,8 @@ def train(
     for epoch in range(epochs):
         if epoch:
             corpus = make_corpus(epoch)
+            starts = corpus.run_starts(run, rng)
         net.train()
-        starts = corpus.run_starts(run, rng)
         err_sum, count = 0.0, 0.0
         for i in range(0, starts.size, segments):
             batch = gather(corpus, starts[i : i + segments], run, radius, stride)
