@@ -145,6 +145,23 @@ def test_observation_nan_counts_as_missing(walk):
     assert np.isnan(obs.motion.angles_deg[3, 7]).all()
 
 
+def test_every_engine_s_clean_refuses_what_it_cannot_clean_and_what_it_must_not_return(walk):
+    class Broken(Engine):
+        info = EngineInfo(name="test-broken", summary="test: weights that give NaN", tasks=frozenset({"denoise"}))
+
+        def clean(self, observation, /):
+            return CleanResult(observation.motion.with_channels(np.full_like(observation.motion.channels, np.nan)))
+
+    with pytest.raises(TypeError, match="test-broken.clean takes an Observation, not a Motion: Observation"):
+        Broken().clean(walk)
+    nothing = Observation(walk, np.zeros((walk.n_frames, walk.skeleton.n_joints), bool))
+    for engine in (Broken(), registry.create("kalman"), registry.create("ebd>ebf")):
+        with pytest.raises(EngineError, match="no sample of the take is observed"):
+            engine.clean(nothing)
+    with pytest.raises(EngineError, match="test-broken returned missing or infinite values: its weights are broken"):
+        Broken().clean(Observation(walk))
+
+
 def test_every_trained_engine_has_its_own_weights_folder_and_its_committed_weights_load():
     folders = {}
     for name in registry.available():

@@ -190,9 +190,16 @@ def test_weights_with_nan_are_never_saved_nor_loaded_and_an_empty_file_is_refuse
     with pytest.raises(EngineError, match="NaN or infinite values"):
         save_weights(empty, {"w": np.array([1.0, np.nan])}, {"engine": "demo", "skeleton_signature": "x"})
     assert not any(empty.iterdir())
-    nan_file = tmp_path_factory.mktemp("nan_file") / "w.npz"
-    np.savez(nan_file, w=np.array([np.inf]))
-    for content, needle in ((b"", "unreadable weights"), (nan_file.read_bytes(), "NaN or infinite")):
+    folder = tmp_path_factory.mktemp("bad_files")
+    np.savez(folder / "nan.npz", w=np.array([np.inf]))
+    np.savez(folder / "text.npz", w=np.array(["1"]))
+    np.savez(folder / "complex.npz", w=np.array([1j]))
+    files = [(b"", "unreadable weights"), ((folder / "nan.npz").read_bytes(), "NaN or infinite")]
+    files += [
+        ((folder / f"{k}.npz").read_bytes(), rf"other than real numbers \(w \({t}")
+        for k, t in (("text", "<U1"), ("complex", "complex"))
+    ]
+    for content, needle in files:
         (saved / WEIGHTS_FILE).write_bytes(content)  # re-signed: passes the checksums
         manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
         manifest["sha256"] = weights.sha256_file(saved / WEIGHTS_FILE)

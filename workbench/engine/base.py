@@ -27,6 +27,7 @@ Each parameter of a trainable engine has one of three roles, set by its field
 from __future__ import annotations
 
 import dataclasses
+import functools
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -216,6 +217,34 @@ def _coerce(value: str, kind: typing.Any, name: str) -> typing.Any:
     raise ValueError(f"{name}: cannot set a parameter of type {kind} from text")
 
 
+def _checked_clean(clean):
+    """``clean`` (an engine's method), refusing what no engine can clean and what no
+    engine may return, each with an error that says so: TypeError for an input that is
+    not an :class:`Observation`; EngineError for an observation with no sample observed
+    (an engine would make every value up) and for a result that is not finite
+    everywhere (broken weights, a diverged training), naming the engine and its weights."""
+
+    @functools.wraps(clean)
+    def checked(self, observation, /, **kwargs):
+        if not isinstance(observation, Observation):
+            raise TypeError(
+                f"{self.info.name}.clean takes an Observation, not a {type(observation).__name__}: "
+                "Observation(motion), with its observed mask where it has gaps"
+            )
+        if not observation.observed.any():
+            raise EngineError("no sample of the take is observed (every value is NaN or masked as missing)")
+        result = clean(self, observation, **kwargs)
+        if not np.isfinite(result.motion.channels).all():
+            weights = f" with its {self.weights_used_}" if self.weights_used_ else ""
+            raise EngineError(
+                f"{self.spec}{weights} returned missing or infinite values: its weights are broken (a training "
+                "that diverged?); retrain them, or clean with the committed ones"
+            )
+        return result
+
+    return checked
+
+
 class Engine:
     """Base class of every engine, with the machinery they share.
 
@@ -296,6 +325,13 @@ class Engine:
     humanoid_overrides: Mapping[str, str | None] | None = None
     #: the universal variant that cleans skeletons with no weights of their own (:meth:`universal_twin`)
     _universal_twin: "Engine | None" = None
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        """Every engine's own ``clean`` is wrapped by :func:`_checked_clean`, which holds
+        its input and output to :meth:`clean`'s contract in one place."""
+        super().__init_subclass__(**kwargs)
+        if "clean" in cls.__dict__:
+            cls.clean = _checked_clean(cls.__dict__["clean"])
 
     def __init__(self, params: typing.Any = None) -> None:
         self.params = self.Params() if params is None else params
@@ -433,11 +469,15 @@ class Engine:
 
         Raises
         ------
+        TypeError
+            ``observation`` is not an :class:`Observation` (every engine's ``clean`` checks,
+            :func:`_checked_clean`).
         NotFittedError
             A trainable engine that is neither fitted nor loaded (:meth:`require_fitted`).
         EngineError
-            A skeleton layout other than the fitted one (:meth:`check_skeleton`), or input
-            the engine cannot use.
+            A skeleton layout other than the fitted one (:meth:`check_skeleton`), input
+            the engine cannot use, no sample observed, or a result that is not finite
+            (broken weights; :func:`_checked_clean`).
         NotImplementedError
             In the base class: every engine overrides it.
         """

@@ -149,8 +149,7 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
     arrays = {k: np.asarray(v) for k, v in arrays.items()}
     _refuse_non_finite(arrays, "the trained weights")
     folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    with atomic_path(folder / WEIGHTS_FILE) as tmp:
+    with atomic_path(folder / WEIGHTS_FILE) as tmp:  # (it makes the folder)
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
         full = {
@@ -244,9 +243,16 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
 
 
 def _refuse_non_finite(arrays: Mapping[str, np.ndarray], what: str) -> None:
-    """Raise EngineError where an array holds NaN or infinite values: such weights would
-    clean every take into NaN."""
-    broken = [k for k, a in arrays.items() if a.dtype.kind in "fc" and not np.isfinite(a).all()]
+    """Raise EngineError where an array holds other than real numbers (text, complex
+    numbers, objects) or NaN or infinite values: such weights would clean every take into
+    NaN, or fail with a message about something else."""
+    other = [f"{k} ({a.dtype})" for k, a in arrays.items() if a.dtype.kind not in "biuf"]
+    if other:
+        raise EngineError(
+            f"{what}: the weights hold arrays of other than real numbers ({', '.join(other[:3])}): they are "
+            "damaged or not this project's; train the engine again"
+        )
+    broken = [k for k, a in arrays.items() if a.dtype.kind == "f" and not np.isfinite(a).all()]
     if broken:
         raise EngineError(
             f"{what}: the weights hold NaN or infinite values (in {', '.join(broken[:3])}): the training "
