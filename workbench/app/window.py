@@ -19,6 +19,7 @@ from PySide6.QtWidgets import (
     QMainWindow,
     QProgressBar,
     QPushButton,
+    QSizePolicy,
     QSlider,
     QSplitter,
     QStyle,
@@ -45,7 +46,10 @@ class ErrorScale(FigureCanvasQTAgg):
     def __init__(self, session: Session) -> None:
         super().__init__(Figure(figsize=(2.6, 0.5), layout="constrained"))
         self.session = session
-        self.setFixedSize(260, 46)
+        # 260 px where the window has room, down to 140 where the timeline slider needs it
+        self.setMinimumSize(140, 46)
+        self.setMaximumSize(260, 46)
+        self.setSizePolicy(QSizePolicy.Preferred, QSizePolicy.Fixed)
         session.takeChanged.connect(self.redraw)
 
     def redraw(self) -> None:
@@ -184,6 +188,7 @@ class Transport(QWidget):
         self.play.setFocusPolicy(Qt.NoFocus)
         self.play.clicked.connect(session.toggle_playing)
         self.slider = QSlider(Qt.Horizontal)
+        self.slider.setMinimumWidth(160)  # in a narrow window the colour scale gives way, not the timeline
         self.slider.valueChanged.connect(session.set_frame)
         self.label = QLabel()
         # a fixed size: a new text then repaints the label without laying the window out again
