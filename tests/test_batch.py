@@ -192,10 +192,10 @@ def test_a_take_at_1_or_1200_frames_a_second_is_cleaned_with_a_note_on_its_frame
 
 
 def test_a_folder_clean_refuses_two_takes_for_one_file_and_files_no_clean_wrote(library, tmp_path, capsys):
-    (library / "walk.BVH").write_bytes((library / "walk.bvh").read_bytes())
-    with pytest.raises(ValueError, match=r"walk\.BVH and .*walk\.bvh would both be cleaned to .*: move or rename"):
+    (library / "WALK.bvh").write_bytes((library / "walk.bvh").read_bytes())  # one file where names ignore case
+    with pytest.raises(ValueError, match=r"WALK\.bvh and .*walk\.bvh would both be cleaned to .*: move or rename"):
         batch.library_jobs(library, tmp_path / "out")
-    (library / "walk.BVH").unlink()
+    (library / "WALK.bvh").unlink()
     inside = library / "cleaned"  # an output folder inside the takes' folder, holding a raw take
     inside.mkdir()
     raw = (library / "jump.bvh").read_bytes()

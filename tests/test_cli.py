@@ -459,8 +459,9 @@ def test_train_refuses_before_training_what_would_lose_weights(tmp_path, data_ro
         assert f"weights=runs/{folder}'" in capsys.readouterr().out
     manifest = (tmp_path / "runs" / "kalman-learned" / "manifest.json").read_bytes()
     assert main(["train", "kalman-learned", *data, "--out", "runs/kalman-learned"]) == 2
-    assert "holds weights already" in capsys.readouterr().err
+    assert "holds weights already: name another folder, or pass --overwrite" in capsys.readouterr().err
     assert (tmp_path / "runs" / "kalman-learned" / "manifest.json").read_bytes() == manifest
+    assert main(["train", "kalman-learned", *data, "--out", "runs/kalman-learned", "--overwrite"]) == 0
 
 
 def test_clean_picks_the_weights_of_the_take_s_skeleton_with_no_flag(tmp_path, data_root):

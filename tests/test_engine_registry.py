@@ -1,8 +1,10 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
 from workbench import registry
-from workbench.core import Observation
+from workbench.core import Motion, Observation
 from workbench.core.rotations import wrap_deg
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, Pipeline
 
@@ -155,10 +157,14 @@ def test_every_engine_s_clean_refuses_what_it_cannot_clean_and_what_it_must_not_
     with pytest.raises(TypeError, match="test-broken.clean takes an Observation, not a Motion: Observation"):
         Broken().clean(walk)
     nothing = Observation(walk, np.zeros((walk.n_frames, walk.skeleton.n_joints), bool))
-    for engine in (Broken(), registry.create("kalman"), registry.create("ebd>ebf")):
-        with pytest.raises(EngineError, match="no sample of the take is observed"):
-            engine.clean(nothing)
-    with pytest.raises(EngineError, match="test-broken returned missing or infinite values: its weights are broken"):
+    sk = walk.skeleton  # and a joint without channels, which is never missing, does not count as observed
+    still = dataclasses.replace(sk, channels=(*sk.channels[:-1], ()))
+    unseen = Motion(still, walk.fps, walk.root_positions * np.nan, walk.angles_deg * np.nan)
+    for engine in (Broken(), registry.create("kalman"), registry.create("ebd>ebf"), registry.create("lerp")):
+        for observation in (nothing, Observation(unseen)):
+            with pytest.raises(EngineError, match="no sample of the take is observed"):
+                engine.clean(observation)
+    with pytest.raises(EngineError, match="test-broken returned missing or infinite values: a fault of the engine"):
         Broken().clean(Observation(walk))
 
 

@@ -244,9 +244,10 @@ def library_jobs(source: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     """The (take, cleaned take) pairs of ``clean SOURCE -o OUT_DIR``: every .bvh and .amc
     file below ``source``, outside ``out_dir`` (which may lie inside it), to the same place
     below ``out_dir`` as .bvh. ValueError, naming the files, when ``source`` holds no take,
-    when two takes would be cleaned to one file (``a.bvh`` and ``a.BVH``, or ``a.bvh`` and
-    ``a.amc``), or when ``out_dir`` holds files where cleaned takes go but no clean has
-    written there (no :data:`MANIFEST`): they are someone's takes, which it would overwrite."""
+    when two takes would be cleaned to one file (``a.bvh`` and ``a.BVH``, ``a.bvh`` and
+    ``a.amc``, or ``A.bvh`` and ``a.bvh``, one file on a disk that ignores case), or when
+    ``out_dir`` holds files where cleaned takes go but no clean has written there (no
+    :data:`MANIFEST`): they are someone's takes, which it would overwrite."""
     from .data.roots import files_under
     from .io import MOTION_SUFFIXES
 
@@ -257,13 +258,12 @@ def library_jobs(source: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     if not takes:
         raise ValueError(f"{source} holds no .bvh or .amc file")
     jobs = [(p, out_dir / p.relative_to(source).with_suffix(".bvh")) for p in takes]
-    first: dict[Path, Path] = {}
+    first: dict[str, Path] = {}
     for take, output in jobs:
-        if output in first:
-            raise ValueError(
-                f"{first[output]} and {take} would both be cleaned to {output}: move or rename one of them"
-            )
-        first[output] = take
+        key = output.relative_to(out_dir).as_posix().casefold()  # one file where names ignore case
+        if key in first:
+            raise ValueError(f"{first[key]} and {take} would both be cleaned to {output}: move or rename one of them")
+        first[key] = take
     there = [output for _, output in jobs if output.exists()]
     if there and not (out_dir / MANIFEST).exists():
         raise ValueError(

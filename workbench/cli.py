@@ -329,19 +329,20 @@ def _back_up(take: Path) -> Path | None:
     return None
 
 
-def _move_mask_to_backup(take: Path) -> None:
-    """After ``clean --in-place`` filled the gaps ``take``'s mask sidecar names, move the
-    sidecar beside the raw take's backup, which it describes: left beside the cleaned take
-    it would mark filled samples missing (``inspect``, a later clean). Where the backup
-    has a mask already, the sidecar stays, with a note."""
+def _settle_mask(take: Path, backed_up: bool) -> None:
+    """After ``clean --in-place`` filled the gaps ``take``'s mask sidecar names: left
+    beside the cleaned take, the sidecar would mark filled samples missing (``inspect``, a
+    later clean). Where this clean ``backed_up`` the raw take, the sidecar describes that
+    backup and moves beside it; otherwise (the backup is an earlier take's, or has a mask)
+    it stays, with a note to remove it."""
     from .io.mask import sidecar_path
 
     mask, kept = sidecar_path(take), sidecar_path(_backup_of(take))
-    if kept.exists():
-        print(f"note: {mask} names the gaps this clean filled; remove it ({kept} is the raw take's)", file=sys.stderr)
-        return
-    os.replace(mask, kept)
-    print(f"note: the mask moved with the raw take, to {kept}", file=sys.stderr)
+    if backed_up and not kept.exists():
+        os.replace(mask, kept)
+        print(f"note: the mask moved with the raw take, to {kept}", file=sys.stderr)
+    else:
+        print(f"note: {mask} names the gaps this clean filled: remove it before cleaning again", file=sys.stderr)
 
 
 def cmd_clean(args) -> int:
@@ -399,10 +400,10 @@ def cmd_clean(args) -> int:
             from .io.atomic import atomic_write_text
 
             atomic_write_text(_clean_record(source), json.dumps({"cleaned_sha256": sha256_file(source)}) + "\n")
-            if not args.mask and sidecar_path(source).exists():
-                _move_mask_to_backup(source)
         for note in report.notes:
             print(f"note: {note}", file=sys.stderr)
+        if args.in_place and not args.mask and sidecar_path(source).exists():
+            _settle_mask(source, backup is not None)
         print(report)
         return 0
     if args.mask:
@@ -649,14 +650,15 @@ COMMITTED_WEIGHTS_DATASET = "cmu"
 COMMITTED_UNIVERSAL_DATASETS = "cmu,bandai"
 
 
-def _weights_out(named: str | None, engine) -> Path:
+def _weights_out(named: str | None, engine, overwrite: bool = False) -> Path:
     """The folder ``train`` saves ``engine``'s weights into: ``--out`` (``named``), checked
     before the training, or ``runs/VARIANT``, numbered ``runs/VARIANT-2`` and on where that
     holds weights already. UserError for a folder that cannot take them: one below a file,
     an unwritable one, one among the engine's committed weights (they change only by
-    ``--promote``), or a named one that holds weights (a training's minutes, lost)."""
+    ``--promote``), or a named one that holds weights, unless ``overwrite`` (``--overwrite``:
+    a training's minutes are not lost by a typo)."""
     from .engine.weights import MANIFEST_FILE, WEIGHTS_FILE
-    from .io.atomic import file_in_the_way
+    from .io.atomic import check_writable, file_in_the_way
 
     def has_weights(folder: Path) -> bool:
         return (folder / MANIFEST_FILE).exists() or (folder / WEIGHTS_FILE).exists()
@@ -668,18 +670,18 @@ def _weights_out(named: str | None, engine) -> Path:
             out = Path("runs") / f"{engine.variant}-{n}"
     else:
         out = Path(named)
+    what = f"--out {out}" if named else f"the weights' folder {out} (--out names another)"
     if (blocking := file_in_the_way(out)) is not None:
-        raise UserError(f"--out {out}: {blocking} is a file; the weights go into a folder: name another")
+        raise UserError(f"{what}: {blocking} is a file; the weights go into a folder")
     if out.resolve().is_relative_to(committed := engine.default_weights_dir().parent):
         raise UserError(
-            f"--out {out} is among the committed weights ({committed}): train into another folder (--promote "
-            "then replaces the committed weights of its data set)"
+            f"{what} is among the committed weights ({committed}): train into another folder (--promote then "
+            "replaces the committed weights of its data set)"
         )
-    if has_weights(out):
-        raise UserError(f"--out {out} holds weights already: name another folder, or move those away")
+    if has_weights(out) and not overwrite:
+        raise UserError(f"{what} holds weights already: name another folder, or pass --overwrite to replace them")
     nearest = next(f for f in (out, *out.resolve().parents) if f.exists())
-    if not os.access(nearest, os.W_OK | os.X_OK):
-        raise UserError(f"--out {out}: {nearest} cannot be written: name another folder")
+    check_writable(nearest / WEIGHTS_FILE)  # (a temporary file there, removed: no folder made before the training)
     return out
 
 
@@ -694,7 +696,7 @@ def cmd_train(args) -> int:
     if not engine.info.trainable:
         raise UserError(f"engine {engine.info.name!r} has nothing to train")
     if args.epochs is not None:
-        if not hasattr(engine.params, "epochs"):
+        if not any(hasattr(stage.params, "epochs") for stage in getattr(engine, "stages", [engine])):
             raise UserError(f"{engine.info.name} is fitted in closed form, not in epochs: leave out --epochs")
         engine = registry.create(
             args.engine + ("," if ":" in args.engine else ":") + f"epochs={args.epochs}", pretrained=False
@@ -740,7 +742,7 @@ def cmd_train(args) -> int:
                 "--promote replaces the committed weights of a data set of the catalogue (--dataset NAME); "
                 "weights trained on a folder of takes stay in --out: clean with them by weights=DIR"
             )
-    out = _weights_out(args.out, engine)
+    out = _weights_out(args.out, engine, args.overwrite)
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
     test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
@@ -1075,7 +1077,10 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="PCT",
         help="train on this percentage of the training clips (for learning curves; a fixed, nested choice)",
     )
-    sp.add_argument("--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias)")
+    sp.add_argument(
+        "--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias, or -2, -3, ...)"
+    )
+    sp.add_argument("--overwrite", action="store_true", help="replace the weights --out holds already")
     sp.add_argument(
         "--promote",
         action="store_true",

@@ -297,12 +297,13 @@ def test_what_other_exporters_write_reads_and_names_keep_their_bytes(walk, tmp_p
     p.write_text(text.replace("Zrotation Yrotation Xrotation", "ZROTATION yrotation Xrotation"))
     assert read_bvh(p).skeleton.channels == read_bvh_text(tmp_path, text).skeleton.channels
     name = walk.skeleton.names[1]
-    raw = text.encode().replace(f"JOINT {name}".encode(), f"JOINT {name}\xe9".encode("latin-1"))  # not UTF-8
-    p.write_bytes(raw)
-    motion = read_bvh(p)
-    assert motion.skeleton.names[1] == f"{name}\xe9" and motion.skeleton.text_encoding == "latin-1"
-    write_bvh(tmp_path / "out.bvh", motion)
-    assert f"JOINT {name}\xe9\n".encode("latin-1") in (tmp_path / "out.bvh").read_bytes()
+    for other, encoding in (("\xe9", "latin-1"), ("\u2026", "cp1252"), ("\u3042\u30e5", "cp932")):  # é; …; あュ
+        joint = f"JOINT {name}{other}".encode(encoding)  # not UTF-8: 0x85 and 0xA0 are no line end nor space
+        p.write_bytes(text.encode().replace(f"JOINT {name}".encode(), joint))
+        motion = read_bvh(p)
+        assert motion.skeleton.text_encoding == "latin-1" and motion.skeleton.names[1].encode("latin-1") == joint[6:]
+        write_bvh(tmp_path / "out.bvh", motion)
+        assert joint + b"\n" in (tmp_path / "out.bvh").read_bytes()
 
 
 def read_bvh_text(tmp_path, text):

@@ -83,11 +83,11 @@ def has_reference_frame(motion: Motion) -> bool:
         return False
     if not np.all(a[0, motion.skeleton.body_root] == 0.0):
         return False
-    later = np.abs(a[1:, body]).reshape(motion.n_frames - 1, -1)
-    seen = np.flatnonzero(np.isfinite(later).any(axis=1))  # missing samples (NaN) tell nothing
-    if not seen.size:  # nothing after it: frame 0 is all there is, and not motion
-        return True
-    return bool(np.nanmean(np.abs(a[0, body])) < 0.5 * np.nanmean(later[seen[0]]))
+    for frame in range(1, motion.n_frames):  # the first with an angle observed: missing ones (NaN) tell nothing
+        later = np.abs(a[frame, body])
+        if np.isfinite(later).any():
+            return bool(np.nanmean(np.abs(a[0, body])) < 0.5 * np.nanmean(later))
+    return True  # nothing after it: frame 0 is all there is, and not motion
 
 
 def without_reference_frame(motion: Motion) -> Motion:

@@ -220,9 +220,10 @@ def _coerce(value: str, kind: typing.Any, name: str) -> typing.Any:
 def _checked_clean(clean):
     """``clean`` (an engine's method), refusing what no engine can clean and what no
     engine may return, each with an error that says so: TypeError for an input that is
-    not an :class:`Observation`; EngineError for an observation with no sample observed
-    (an engine would make every value up) and for a result that is not finite
-    everywhere (broken weights, a diverged training), naming the engine and its weights."""
+    not an :class:`Observation` and for a result that is not a :class:`CleanResult`;
+    EngineError for an observation with no channel observed (an engine would make every
+    value up) and for a result that is not finite everywhere, naming the engine and, for
+    a trained one, its weights (broken weights, a diverged training)."""
 
     @functools.wraps(clean)
     def checked(self, observation, /, **kwargs):
@@ -231,15 +232,21 @@ def _checked_clean(clean):
                 f"{self.info.name}.clean takes an Observation, not a {type(observation).__name__}: "
                 "Observation(motion), with its observed mask where it has gaps"
             )
-        if not observation.observed.any():
+        if not observation.channel_observed.any():
             raise EngineError("no sample of the take is observed (every value is NaN or masked as missing)")
         result = clean(self, observation, **kwargs)
-        if not np.isfinite(result.motion.channels).all():
-            weights = f" with its {self.weights_used_}" if self.weights_used_ else ""
-            raise EngineError(
-                f"{self.spec}{weights} returned missing or infinite values: its weights are broken (a training "
-                "that diverged?); retrain them, or clean with the committed ones"
+        if not isinstance(result, CleanResult):
+            raise TypeError(f"{self.info.name}.clean returned a {type(result).__name__}, not a CleanResult")
+        motion = result.motion
+        parts = (motion.root_positions, motion.angles_deg, motion.translations)
+        if not all(np.isfinite(a).all() for a in parts if a is not None):
+            cause = (
+                f"its weights{f' ({self.weights_used_})' if self.weights_used_ else ''} are broken (a training "
+                "that diverged?): retrain them, or clean with the committed ones"
+                if self.info.trainable
+                else "a fault of the engine"
             )
+            raise EngineError(f"{self.spec} returned missing or infinite values: {cause}")
         return result
 
     return checked
@@ -251,8 +258,10 @@ class Engine:
     Parameters from spec strings (:meth:`from_options`, :attr:`spec`), skeleton checks
     (:meth:`training_motions`, :meth:`check_skeleton`), and saving and loading fitted
     state with a checksummed manifest (:meth:`save`, :meth:`load`). A subclass sets
-    :attr:`info` and :attr:`Params` and implements :meth:`clean`; a trainable one also
-    :meth:`fit`, :meth:`state_arrays` and :meth:`load_state_arrays`.
+    :attr:`info` and :attr:`Params` and implements :meth:`clean` (which the class wraps
+    in :func:`_checked_clean`: the input is an observation with something observed, the
+    output a finite CleanResult); a trainable one also :meth:`fit`,
+    :meth:`state_arrays` and :meth:`load_state_arrays`.
 
     Parameters
     ----------

@@ -88,8 +88,9 @@ class _Tokens:
         return value
 
 
-#: a header token
-_WORD = re.compile(r"\S+")
+#: a header token: ASCII whitespace parts them (a name's no-break space, or a Latin-1
+#: byte 0xA0 in a Shift-JIS name, is part of the name)
+_WORD = re.compile(r"\S+", re.ASCII)
 #: the channel names, by their lower case: exporters differ in case (``XROTATION``,
 #: ``xrotation``); a take is written back in the standard's (``Xrotation``)
 _CHANNEL_NAMES = {name.lower(): name for name in ROTATION_CHANNELS + POSITION_CHANNELS}

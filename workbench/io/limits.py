@@ -5,6 +5,7 @@ rather than minutes and gigabytes."""
 from __future__ import annotations
 
 import codecs
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -27,8 +28,8 @@ _CHUNK_BYTES = 1 << 20
 
 class Lines:
     """The lines of a motion file, split as ``str.splitlines`` splits them (any line
-    ends; a UTF-8 byte order mark skipped; from the first megabyte that is not UTF-8 on,
-    read as Latin-1: :attr:`encoding`), decoded and split a megabyte at a time as
+    ends; a UTF-8 byte order mark skipped; a file that is not UTF-8 read as Latin-1, its
+    lines ended by CR and LF only: :attr:`encoding`), decoded and split a megabyte at a time as
     they are asked for: a reader that stops early (a bad header) never decodes the rest,
     and one that meets a block of frame numbers can hand its bytes (:meth:`rest`) to a
     compiled parser instead.
@@ -72,9 +73,8 @@ class Lines:
 
     @property
     def encoding(self) -> str:
-        """How the lines given out so far were decoded: ``"utf-8"``, or ``"latin-1"``
-        once a megabyte of the file was not UTF-8 (each byte one character, so that text
-        encoded back with it is the file's bytes)."""
+        """How the file was decoded: ``"utf-8"``, or ``"latin-1"`` where it is not UTF-8
+        (each byte one character, so that text encoded back with it is the file's bytes)."""
         return self._progress.encoding
 
 
@@ -95,16 +95,13 @@ def _split(raw: bytes, done: _Progress, path) -> Iterator[str]:
     """The lines of ``raw`` for :class:`Lines`, recording its progress in ``done``."""
     if raw.startswith(codecs.BOM_UTF8):  # a UTF-8 byte order mark, which some editors write
         done.end = len(codecs.BOM_UTF8)
+    if not _is_utf8(raw):
+        done.encoding = "latin-1"
     while done.end < len(raw):
         cut = raw.find(b"\n", done.end + _CHUNK_BYTES)  # after a newline: no CRLF or UTF-8 sequence split
         done.start, done.end = done.end, len(raw) if cut < 0 else cut + 1
-        try:
-            done.chunk = raw[done.start : done.end].decode(done.encoding)
-        except UnicodeDecodeError:
-            done.encoding = "latin-1"
-            done.chunk = raw[done.start : done.end].decode(done.encoding)
-        done.given = 0
-        for line, whole in zip(done.chunk.splitlines(), done.chunk.splitlines(keepends=True)):
+        done.chunk, done.given = raw[done.start : done.end].decode(done.encoding), 0
+        for line, whole in _lines(done.chunk, done.encoding):
             done.count += 1
             done.given += len(whole)
             if len(line) > MAX_LINE_CHARS:
@@ -115,6 +112,33 @@ def _split(raw: bytes, done: _Progress, path) -> Iterator[str]:
                     done.count,
                 )
             yield line
+
+
+def _is_utf8(raw: bytes) -> bool:
+    """Whether ``raw`` is UTF-8 text (ASCII, as most motion files, told at once)."""
+    if raw.isascii():
+        return True
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return True
+
+
+#: a line of Latin-1 text and its end: only CR and LF end one, since the bytes 0x85 and
+#: 0x1C-0x1E, which ``str.splitlines`` also splits at, are letters of other encodings
+#: (0x85 is the second byte of Shift-JIS katakana)
+_LATIN1_LINE = re.compile(r"([^\r\n]*)(\r\n|\r|\n|\Z)")
+
+
+def _lines(text: str, encoding: str) -> Iterator[tuple[str, str]]:
+    """(line, the line with its end) of ``text`` decoded with ``encoding``."""
+    if encoding == "utf-8":
+        yield from zip(text.splitlines(), text.splitlines(keepends=True))
+        return
+    for match in _LATIN1_LINE.finditer(text):
+        if match.group(0):
+            yield match.group(1), match.group(0)
 
 
 def read_lines(path: str | Path) -> list[str]:
