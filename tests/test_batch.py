@@ -76,6 +76,13 @@ def test_resume_skips_the_takes_done_and_refuses_another_engine(library, tmp_pat
     assert not stale.exists(), "the next write of a take removes what a killed one left"
     assert main(["clean", str(library), "-o", str(out), "--engine", "gaussian", "--resume"]) == 2
     assert "--resume would mix the two" in capsys.readouterr().err
+    mapping = tmp_path / "map.json"  # a mapping file is known by what it pins, not by its path
+    mapping.write_text('{"head": "Head"}')
+    assert main([*argv, "--mapping", str(mapping)]) == 0
+    capsys.readouterr()
+    mapping.write_text('{"head": "Neck1"}')
+    assert main([*argv, "--mapping", str(mapping), "--resume"]) == 2
+    assert "--resume would mix the two" in capsys.readouterr().err
     (out / ".workbench-clean.json").write_text("{ not json")
     assert main([*argv, "--resume"]) == 2
     assert "cannot be read, so what" in capsys.readouterr().err

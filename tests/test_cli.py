@@ -651,3 +651,13 @@ def test_a_pipeline_says_which_weights_its_stages_used(tmp_path, data_root, caps
     assert main(["clean", str(take), "-o", str(tmp_path / "a.bvh"), "--engine", "ebd>ebf"]) == 0
     line = capsys.readouterr().out
     assert "(skeleton-specific weights ebd " in line and ", ebf " in line and line.count("/cmu") == 2, line
+
+
+def test_json_written_for_other_tools_holds_no_nan():
+    from workbench.cli import _strict_json
+
+    def refuse(name):
+        raise ValueError(f"{name} is not JSON")
+
+    text = _strict_json({"gap_mpjpe_cm": float("nan"), "rows": [np.float32(1.5), np.int64(2), -np.inf]})
+    assert json.loads(text, parse_constant=refuse) == {"gap_mpjpe_cm": None, "rows": [1.5, 2, None]}

@@ -83,6 +83,22 @@ def test_folder_of_bvh_files_without_manifest(tmp_path, data_root):
     (tmp_path / "dance" / "x_01.bvh").write_bytes(src.read_bytes())
     clips = catalogue(tmp_path)
     assert [(c.id, c.category, c.split) for c in clips] == [("dance/x_01", "dance", "")]
+    (tmp_path / "dance" / "x_01.amc").write_text("")  # the same take in another format: ids keep the suffix
+    assert [c.id for c in catalogue(tmp_path)] == ["dance/x_01.amc", "dance/x_01.bvh"]
+
+
+def test_a_manifest_that_cannot_be_read_is_named_with_its_row(tmp_path, data_root):
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "a.bvh").write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    for text, message in (
+        ("file,frames\na.bvh,many\n", r"MANIFEST.csv:2: 'frames' or 'fps' is not a number"),
+        ("name\na.bvh\n", r"MANIFEST.csv:2: no 'file' column"),
+        (b"file\n\xff.bvh\n", r"MANIFEST.csv cannot be read"),
+    ):
+        (folder / "MANIFEST.csv").write_bytes(text if isinstance(text, bytes) else text.encode())
+        with pytest.raises(DataNotFoundError, match=message):
+            catalogue(folder)
 
 
 def test_linked_folders_are_followed(tmp_path, data_root):

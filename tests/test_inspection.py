@@ -116,6 +116,14 @@ def test_the_samples_a_robust_engine_rejects_are_the_spikes(embedded_walk):
         inspect_motion(observation.motion, robust_weights=[weight[:, :5]])
 
 
+def test_a_reference_node_take_s_position_weights_reach_its_own_joints(clips):
+    take = next(c for c in clips if c.id == "bandai/walk/dataset-1_walk_active_001").load()  # under joint_Root
+    observation = parse_corruption("outliers:0.01").apply(take, seed=1)
+    weight = registry.create("mssa:space=positions").clean(observation).diagnostics["robust_weight"]
+    assert weight.shape[1] == 3 * take.skeleton.n_joints and not weight[:, :3].any()  # joint_Root: not filtered
+    assert inspect_motion(observation.motion, robust_weights=[weight]).flags["rejected"].any()
+
+
 def test_engines_that_disagree_and_missing_samples_are_intervals(embedded_walk):
     sk = embedded_walk.skeleton
     points = embedded_walk.positions * sk.unit_cm

@@ -147,12 +147,14 @@ def _read(path: str):
 def cmd_skeleton(args) -> int:
     from .core.humanoid import map_humanoid
     from .core.upright import up_turn
+    from .engine.view import body_skeleton
     from .io.mapping import read_mapping
 
     motion = _read(args.take)
     s = motion.skeleton
     overrides = read_mapping(args.mapping) if args.mapping else None
-    mapping = map_humanoid(s, overrides)  # a mapping it refuses: its one line, before anything is printed
+    # as the engines map it: the body view, without a reference node above the body root
+    mapping = map_humanoid(body_skeleton(s), overrides)  # one it refuses: its one line, before anything is printed
     print(
         f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
     )
@@ -164,6 +166,18 @@ def cmd_skeleton(args) -> int:
         + ("" if turn is None else " (turned onto +Y for the trained engines and the app)")
     )
     return 0
+
+
+def _pinned(engine, mapping: str | None):
+    """``engine`` (each stage of a pipeline) with the canonical joints the ``--mapping``
+    file ``mapping`` pins, if any, for its universal weights."""
+    if mapping:
+        from .io.mapping import read_mapping
+
+        overrides = read_mapping(mapping)
+        for stage in getattr(engine, "stages", [engine]):
+            stage.humanoid_overrides = overrides
+    return engine
 
 
 def cmd_inspect(args) -> int:
@@ -184,14 +198,14 @@ def cmd_inspect(args) -> int:
     observed = observed_take(args.take, motion, None if observed is None else observed[dropped:]).observed
     weights, points = [], []
     for spec in args.engine or []:
-        result = registry.create(spec).clean(Observation(motion, observed))
+        result = _pinned(registry.create(spec), args.mapping).clean(Observation(motion, observed))
         points.append(result.motion.positions * motion.skeleton.unit_cm)
         if "robust_weight" in result.diagnostics:
             weights.append(result.diagnostics["robust_weight"])
     found = inspect_motion(motion, observed, weights, points)
     report = found.to_json() | {"take": args.take, "reference_frames_dropped": dropped}
     if args.json:
-        print(json.dumps(report, indent=1))
+        print(_strict_json(report))
         return 0
     if dropped:
         print("note: dropped frame 0, a T-pose reference frame; frames below count from the next", file=sys.stderr)
@@ -239,6 +253,22 @@ def _refuse_overwriting(output: Path, take: Path, mask: Path, hint: str) -> None
     for path, what in ((take, "the input take"), (mask, f"the mask of {take}")):
         if output.resolve() == path.resolve() or output.exists() and path.exists() and output.samefile(path):
             raise UserError(f"-o {output} is {what}: writing it would overwrite the raw data; {hint}")
+
+
+def _strict_json(doc) -> str:
+    """``doc`` as JSON that any parser reads: numpy numbers as numbers, NaN and infinities
+    (a metric with nothing to measure) as null, which Python's json writes as NaN."""
+
+    def plain(value):
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return [plain(v) for v in value]
+        if isinstance(value, (float, np.floating)):
+            return float(value) if math.isfinite(value) else None
+        return value.item() if isinstance(value, np.generic) else value
+
+    return json.dumps(plain(doc), indent=1, allow_nan=False)
 
 
 def cmd_corrupt(args) -> int:
@@ -368,13 +398,7 @@ def cmd_clean(args) -> int:
                 f"name another file, or pass --in-place, which keeps the raw take as {source.name}{BACKUP_SUFFIX}",
             )
             _check_bvh_output(output)
-    engine = registry.create(args.engine)  # a bad spec or unreadable weights stop here, before any take
-    if args.mapping:
-        from .io.mapping import read_mapping
-
-        overrides = read_mapping(args.mapping)
-        for stage in getattr(engine, "stages", [engine]):
-            stage.humanoid_overrides = overrides
+    engine = _pinned(registry.create(args.engine), args.mapping)  # a bad spec or weights stop here, before any take
     if not source.is_dir():
         from .batch import clean_file
 
@@ -424,8 +448,11 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
     take (a progress bar above them on a terminal), the failed takes and their reasons
     at the end; exit status 2 when some failed, 130 when interrupted."""
     from .batch import check_manifest, clean_library
+    from .io.mapping import read_mapping
 
-    settings = {"engine": spec, "keep_reference": args.keep_reference, "mapping": args.mapping}
+    # the mapping by what it pins, not by its path: an edited file cleans again
+    mapping = None if args.mapping is None else dict(sorted(read_mapping(args.mapping).items()))
+    settings = {"engine": spec, "keep_reference": args.keep_reference, "mapping": mapping}
     if args.fill_suspects:  # only when set: a folder cleaned before the option existed still resumes
         settings["fill_suspects"] = True
     try:
@@ -621,7 +648,7 @@ def cmd_bench(args) -> int:
     if args.json:
         from .io.atomic import atomic_write_text
 
-        atomic_write_text(args.json, json.dumps(result.to_json(), indent=1, default=float) + "\n")
+        atomic_write_text(args.json, _strict_json(result.to_json()) + "\n")
         print(f"wrote {args.json}", file=sys.stderr)
     return 0
 
@@ -701,6 +728,7 @@ def cmd_train(args) -> int:
         engine = registry.create(
             args.engine + ("," if ":" in args.engine else ":") + f"epochs={args.epochs}", pretrained=False
         )
+    engine = _pinned(engine, args.mapping)
     if engine.weights_folder is not None:
         raise UserError(
             f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
@@ -954,6 +982,11 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("inspect", help="which frames of a take (no ground truth needed) look broken, and why")
     sp.add_argument("take", nargs="?", help="a BVH/AMC take")
     sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
+    sp.add_argument(
+        "--mapping",
+        metavar="FILE",
+        help="JSON pinning canonical joints for universal weights, as `workbench skeleton` takes it",
+    )
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: TAKE.mask.json if present)")
     sp.add_argument(
         "--engine",
@@ -1081,6 +1114,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias, or -2, -3, ...)"
     )
     sp.add_argument("--overwrite", action="store_true", help="replace the weights --out holds already")
+    sp.add_argument(
+        "--mapping",
+        metavar="FILE",
+        help="JSON pinning canonical joints of a universal variant's training takes, as `workbench skeleton` takes it",
+    )
     sp.add_argument(
         "--promote",
         action="store_true",

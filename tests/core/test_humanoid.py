@@ -220,6 +220,11 @@ def test_skeleton_command_prints_the_mapping_and_reads_a_mapping_file(tmp_path, 
     mapping.write_text("[1, 2]")
     assert main(["skeleton", str(take), "--mapping", str(mapping)]) == 2
     assert "map.json: a mapping file is one JSON object" in capsys.readouterr().err
+    studio = find_clip("bandai/walk/dataset-1_walk_active_001").path  # Hips under the reference node joint_Root
+    mapping.write_text(json.dumps({"hips": "joint_Root"}))  # refused as the engines refuse it: they map the body
+    for command in (["skeleton", str(studio)], ["inspect", str(studio), "--engine", "cae:universal=true"]):
+        assert main([*command, "--mapping", str(mapping)]) == 2
+        assert "hips = 'joint_Root', but the take has no joint 'joint_Root'" in capsys.readouterr().err
 
 
 def test_a_long_spine_bends_about_its_mapped_joint():

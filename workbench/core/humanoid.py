@@ -364,7 +364,8 @@ def _check(skeleton: Skeleton, tree: _Tree, joints: tuple[int, ...]) -> None:
         raise HumanoidError(
             f"the skeleton ({skeleton.n_joints} joints, root {names[0]!r}) has no joint for "
             f"{', '.join(missing)}, which a skeleton-agnostic engine needs; name them in a mapping file "
-            f'(JSON, {{"{missing[0]}": "JointName"}}) passed with --mapping, or clean with a classical engine'
+            f'(JSON, {{"{missing[0]}": "JointName"}}) passed with --mapping (clean, inspect, train; skeleton '
+            "shows what it maps), or clean with a classical engine"
         )
     used: dict[int, str] = {}
     for c, j in at.items():

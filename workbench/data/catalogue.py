@@ -20,10 +20,12 @@ by accident.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import fnmatch
 import hashlib
 import json
 import math
+from collections import Counter
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -32,7 +34,7 @@ import numpy as np
 
 from ..core.motion import Motion, angle_joints
 from ..io import MOTION_SUFFIXES, read_motion
-from .roots import files_under, find_data_root
+from .roots import DataNotFoundError, files_under, find_data_root
 
 SPLITS_DIR = Path(__file__).resolve().parent / "splits"
 #: the terms of the team's data sets (their READMEs); weights trained on one inherit them
@@ -115,23 +117,7 @@ def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
     manifest = folder / "MANIFEST.csv"
     clips = []
     if manifest.exists():
-        with open(manifest, newline="", encoding="utf-8") as fh:
-            for row in csv.DictReader(fh):
-                rel = row["file"]
-                clips.append(
-                    Clip(
-                        id=f"{dataset}/{Path(rel).with_suffix('').as_posix()}",
-                        path=folder / rel,
-                        dataset=dataset,
-                        category=row.get("category", "") or Path(rel).parent.name,
-                        subject=row.get("subject", ""),
-                        split=_split_of(dataset, rel),
-                        frames=int(row.get("frames") or 0),
-                        fps=float(row.get("fps") or 0.0),
-                        style=row.get("style", ""),
-                    )
-                )
-        return clips
+        return _manifest_clips(manifest, dataset)
     for path in files_under(folder):
         if path.suffix.lower() not in MOTION_SUFFIXES:
             continue
@@ -148,6 +134,49 @@ def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
                 split=_split_of(dataset, rel) if dataset else "",
             )
         )
+    ids = Counter(c.id for c in clips)  # a take in two formats (11_01.bvh, 11_01.amc): each id keeps its suffix
+    return [dataclasses.replace(c, id=c.id + c.path.suffix.lower()) if ids[c.id] > 1 else c for c in clips]
+
+
+def _manifest_clips(manifest: Path, dataset: str) -> list[Clip]:
+    """The clips a data set's ``MANIFEST.csv`` lists (``file`` column; ``category``,
+    ``subject``, ``frames``, ``fps``, ``style`` optional); DataNotFoundError naming the
+    file and row where it cannot be read."""
+    folder, clips = manifest.parent, []
+    try:
+        with open(manifest, newline="", encoding="utf-8") as fh:
+            for n, row in enumerate(csv.DictReader(fh), start=2):  # line 1: the header
+                try:
+                    rel = row["file"]
+                    frames, fps = int(row.get("frames") or 0), float(row.get("fps") or 0.0)
+                except (KeyError, TypeError, ValueError) as err:
+                    what = (
+                        "no 'file' column"
+                        if isinstance(err, KeyError)
+                        else f"'frames' or 'fps' is not a number ({err})"
+                    )
+                    raise DataNotFoundError(
+                        f"{manifest}:{n}: {what}; mend the file, or move it away to list the folder's takes"
+                    ) from None
+                clips.append(
+                    Clip(
+                        id=f"{dataset}/{Path(rel).with_suffix('').as_posix()}",
+                        path=folder / rel,
+                        dataset=dataset,
+                        category=row.get("category", "") or Path(rel).parent.name,
+                        subject=row.get("subject", ""),
+                        split=_split_of(dataset, rel),
+                        frames=frames,
+                        fps=fps,
+                        style=row.get("style", ""),
+                    )
+                )
+    except DataNotFoundError:
+        raise
+    except (OSError, UnicodeDecodeError, csv.Error) as err:
+        raise DataNotFoundError(
+            f"{manifest} cannot be read ({err}); mend it, or move it away to list the folder's takes"
+        ) from None
     return clips
 
 

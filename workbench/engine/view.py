@@ -347,8 +347,9 @@ class ModelView:
         return value
 
     def _spread(self, value: np.ndarray) -> np.ndarray:
-        """A diagnostic over the view's channels or joints, over the take's (zero for the
-        joints above the body root and the stretchy bones' translations)."""
+        """A diagnostic over the view's channels, joints or joints' positions (F, 3J'), over
+        the take's (zero for the joints above the body root and the stretchy bones'
+        translations)."""
         skeleton, body = self.source.skeleton, self.observation.skeleton
         b, F = skeleton.body_root, value.shape[0]
         if b == 0 and channel_count(body) == channel_count(skeleton):  # the take's joints and channels, in place
@@ -357,6 +358,10 @@ class ModelView:
             out = np.zeros((F, skeleton.n_joints) + value.shape[2:])
             out[:, body_joints(skeleton)] = value
             return out
+        if value.ndim == 2 and value.shape[1] == 3 * body.n_joints:  # x, y, z of each joint
+            out = np.zeros((F, skeleton.n_joints, 3))
+            out[:, body_joints(skeleton)] = value.reshape(F, body.n_joints, 3)
+            return out.reshape(F, -1)
         if value.ndim == 2 and value.shape[1] == channel_count(body):
             out = np.zeros((F, channel_count(skeleton)))
             t0 = body_position_column(skeleton)
