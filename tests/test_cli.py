@@ -661,3 +661,11 @@ def test_json_written_for_other_tools_holds_no_nan():
 
     text = _strict_json({"gap_mpjpe_cm": float("nan"), "rows": [np.float32(1.5), np.int64(2), -np.inf]})
     assert json.loads(text, parse_constant=refuse) == {"gap_mpjpe_cm": None, "rows": [1.5, 2, None]}
+
+
+@pytest.mark.usefixtures("data_root")
+def test_bench_names_what_stops_it_before_it_runs(capsys):
+    assert main(["bench", "--engines", "kalman,lerp,kalman", "--corrupt", "angular:0.5", "--seeds", "1"]) == 2
+    assert "kalman named twice: name each engine once" in capsys.readouterr().err
+    assert main(["bench", "--engines", "kalman", "--corrupt", "angular:0.5", "--clips", "cmu/walk/02_01"]) == 2
+    assert "the 1 that match are in train: --split NAME or all" in capsys.readouterr().err

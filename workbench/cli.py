@@ -48,6 +48,9 @@ def split_engine_specs(values: list[str]) -> list[str]:
                 specs.append(piece)
     if values and not specs:
         raise UserError(f"no engine named in {' '.join(values)!r}: name one or more, e.g. 'kalman,ebf'")
+    if len(set(specs)) < len(specs):  # a table has a row per engine: each once
+        twice = sorted({s for s in specs if specs.count(s) > 1})
+        raise UserError(f"{', '.join(twice)} named twice: name each engine once")
     return specs
 
 
@@ -551,8 +554,13 @@ def _bench_clips(args):
                 file=sys.stderr,
             )
     if not chosen:
+        splits = sorted({c.split for c in matched if c.split})  # the clips match, in other splits
+        elsewhere = (
+            f"; the {len(matched)} that match are in {' and '.join(splits)}: --split NAME or all" if splits else ""
+        )
         raise UserError(
             f"no clips match split={args.split!r} dataset={args.dataset!r} clips={args.clips!r} under {root}"
+            + elsewhere
             + (f"\n{CMU_CLIPS}" if is_embedded(root) else "")
         )
     return chosen

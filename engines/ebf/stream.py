@@ -140,11 +140,11 @@ class FilterStream:
 
     def _push(self, frame: np.ndarray) -> np.ndarray | None:
         try:
-            raw = np.array(frame, dtype=float).reshape(-1)
+            raw = np.array(frame, dtype=float)
         except (TypeError, ValueError):
             raw = np.zeros(0)
-        if raw.size != self.width or not np.isfinite(raw).all():
-            raise EngineError(f"stream frames must be {self.width} finite channel values (no gaps)")
+        if raw.shape != (self.width,) or not np.isfinite(raw).all():
+            raise EngineError(f"stream frames must be {self.width} finite channel values, (D,) (no gaps)")
         row = raw
         if self._views is not None:
             take, body = self._views

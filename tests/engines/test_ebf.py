@@ -353,7 +353,7 @@ def test_stream_refuses_gaps_and_what_is_no_frame(ebf, walk):
     stream = ebf.stream(walk.skeleton, walk.fps)
     frame = walk.channels[0].copy()
     frame[10] = np.nan
-    for bad in (frame, {"a": 1}, "frame", frame[:-1]):
+    for bad in (frame, {"a": 1}, "frame", frame[:-1], walk.channels[:2, :48]):  # two rows of 48: no frame
         with pytest.raises(EngineError, match="stream frames must be 96 finite channel values"):
             stream.push(bad)
 
