@@ -96,3 +96,21 @@ def test_a_z_up_file_reads_back_as_written_and_the_skeleton_command_says_where_u
     assert read.skeleton.unit_cm == 5.64 and read.allclose(turn_motion(walk, TURNS[0]), atol=1e-6)
     assert main(["skeleton", str(path)]) == 0
     assert "unit: 5.64 cm; up: +Z (turned onto +Y" in capsys.readouterr().out
+
+
+def test_a_mapping_that_does_not_fit_the_take_is_said_not_dropped_with_its_turn(walk):
+    from workbench.core.humanoid import HumanoidError
+
+    assert (
+        up_turn(
+            Motion(
+                Skeleton(("root",), (-1,), np.zeros((1, 3)), (("Xrotation", "Yrotation", "Zrotation"),)),
+                walk.fps,
+                np.zeros((3, 3)),
+                np.zeros((3, 1, 3)),
+            )
+        )
+        is None
+    )  # no humanoid: as it stands
+    with pytest.raises(HumanoidError, match="Nope"):
+        up_turn(walk, {"neck": "Nope"})

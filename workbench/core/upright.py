@@ -67,11 +67,19 @@ def up_turn(motion: Motion, overrides: Mapping[str, str | None] | None = None) -
     numpy.ndarray or None
         A signed axis permutation ``R`` (integers as floats, determinant 1): a point
         ``p`` of the take is at ``R @ p`` in the upright take.
+
+    Raises
+    ------
+    HumanoidError
+        ``overrides`` that do not fit the skeleton (without them, a skeleton with no
+        humanoid mapping is taken as it stands).
     """
     skeleton = motion.skeleton
     try:
         mapping = map_humanoid(skeleton, overrides)
     except HumanoidError:
+        if overrides:  # the user's mapping, refused: said, not dropped with the turn it asks for
+            raise
         return None
     head, feet = mapping.joint("head"), [mapping.joint("left_foot"), mapping.joint("right_foot")]
     frames = np.unique(np.linspace(0, motion.n_frames - 1, min(motion.n_frames, UP_FRAMES)).round().astype(int))

@@ -368,6 +368,18 @@ class Engine:
         except HumanoidError as err:
             raise EngineError(f"engine {self.spec!r}: {err}") from None
 
+    def up_turn(self, motion: Motion) -> np.ndarray | None:
+        """The turn that stands ``motion`` on +Y (:func:`workbench.core.upright.up_turn`),
+        its head and feet found with the user's :attr:`humanoid_overrides`; EngineError
+        where those do not fit the take."""
+        from ..core.humanoid import HumanoidError
+        from ..core.upright import up_turn
+
+        try:
+            return up_turn(motion, self.humanoid_overrides)
+        except HumanoidError as err:
+            raise EngineError(f"engine {self.spec!r}: {err}") from None
+
     # -- parameters -----------------------------------------------------------------
     @classmethod
     def from_options(cls, options: Mapping[str, str]) -> "Engine":
@@ -549,7 +561,7 @@ class Engine:
                 raise EngineError(
                     f"engine {name!r}: training take {m.name or i} {trouble}; train on complete takes of motion"
                 )
-        views = [model_motion(m, self.humanoid_overrides) for m in motions]
+        views = [model_motion(m, self.up_turn(m)) for m in motions]
         if self.skeleton_agnostic:  # each in its own body view; every skeleton must map
             for view in {v.skeleton.signature(): v for v in views}.values():
                 lacking = self.humanoid(view.skeleton).lacking()
@@ -608,10 +620,9 @@ class Engine:
         EngineError
             A skeleton it has no weights for, or one no trained engine models.
         """
-        from ..core.upright import up_turn
         from .view import ModelView, model_skeleton
 
-        turn = up_turn(observation.motion, self.humanoid_overrides)
+        turn = self.up_turn(observation.motion)
         body = model_skeleton(observation.skeleton, turn)
         self.use_weights_for(body)
         self.require_fitted()
@@ -1002,12 +1013,9 @@ class Engine:
         arguments of ``clean``), with :attr:`weights_used_` and :attr:`spec_used_` set to its own; None where
         this engine has weights of its own for the take's skeleton (or no twin), so that
         a trained engine's ``clean`` starts with it."""
-        from ..core.upright import up_turn
         from .view import model_skeleton
 
-        twin = self.universal_twin(
-            model_skeleton(observation.skeleton, up_turn(observation.motion, self.humanoid_overrides))
-        )
+        twin = self.universal_twin(model_skeleton(observation.skeleton, self.up_turn(observation.motion)))
         if twin is None:
             return None
         result = twin.clean(observation, **options)

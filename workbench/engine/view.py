@@ -35,7 +35,6 @@ count frames and are rescaled to the take's frames on the way back.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 
@@ -43,7 +42,7 @@ from ..core.channels import interpolate_frames, known_at, unwrap_deg
 from ..core.motion import Motion, Observation, angle_slice, body_position_column, channel_count
 from ..core.rotations import euler_to_matrix, matrix_to_euler, nearest_euler
 from ..core.skeleton import POSITION_CHANNELS, Skeleton
-from ..core.upright import turn_motion, turn_skeleton, turn_vectors, up_turn
+from ..core.upright import turn_motion, turn_skeleton, turn_vectors
 from .base import CleanResult, EngineError
 from .signal import rewrap_angles
 
@@ -167,11 +166,10 @@ def model_skeleton(skeleton: Skeleton, turn: np.ndarray | None) -> Skeleton:
     return body if turn is None else turn_skeleton(body, turn)
 
 
-def model_motion(motion: Motion, overrides: Mapping[str, str | None] | None = None) -> Motion:
-    """A training take as a trained engine models it: in its body view, upright
-    (``overrides``: the user's humanoid mapping, to find its up), at its own rate (the
-    caller resamples)."""
-    turn = up_turn(motion, overrides)
+def model_motion(motion: Motion, turn: np.ndarray | None) -> Motion:
+    """A training take as a trained engine models it: in its body view, upright (turned
+    by ``turn``, :func:`workbench.core.upright.up_turn`), at its own rate (the caller
+    resamples)."""
     body = to_body(motion)
     return body if turn is None else turn_motion(body, turn)
 
