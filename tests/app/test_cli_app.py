@@ -66,6 +66,20 @@ def test_report_writes_a_png_and_a_pdf(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.pdf", "report.png"], "no temporary files left"
 
 
+def test_a_report_of_a_skeleton_with_few_bones_or_none(tmp_path):
+    from workbench.app.take import bone_choice
+    from workbench.io import read_bvh
+    from workbench.testing.takes import chain_bvh
+
+    for joints, bones in ((4, [1, 2, 3]), (1, [])):  # fewer bones than the plot shows; a lone root
+        take = tmp_path / f"chain{joints}.bvh"
+        take.write_text(chain_bvh(joints, frames=5, wave_deg=10.0))
+        assert bone_choice(read_bvh(take).skeleton) == bones
+        assert (
+            cli.main(["report", str(take), "--corrupt", "none", "--engine", "lerp", "-o", str(tmp_path / "r.png")]) == 0
+        )
+
+
 def test_a_failing_report_leaves_the_old_file_untouched(tmp_path, capsys):
     out = tmp_path / "report.png"
     out.write_bytes(b"old")

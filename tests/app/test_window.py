@@ -120,6 +120,47 @@ def test_clicking_a_joint_selects_it_in_the_plots(window, qtbot, take):
     assert ticks == ["RightLeg →\nRightFoot"], "the bone plot shows the selected joint's bone"
 
 
+def test_a_selected_joint_is_kept_by_name_across_takes(window, qtbot, take):
+    from workbench.app.take import open_take
+
+    s = window.session
+    foot = take.motion.skeleton.index("RightFoot")
+    s.select_joint(foot)
+    s.set_take(take)
+    assert s.selected == (foot,), "the same skeleton: the same joint"
+    s.set_take(open_take("bandai/walk/dataset-1_walk_happy_001", "none", 0))
+    assert s.selected == (), "another skeleton's joint of that index is another joint"
+    settle(qtbot, window)
+
+
+def test_an_engine_ticked_again_while_it_runs_runs_once(window, qtbot, monkeypatch):
+    import time
+
+    from workbench import registry
+    from workbench.engine import CleanResult, Engine, EngineInfo
+
+    calls = []
+
+    class Slow(Engine):
+        info = EngineInfo(name="test-slow", summary="test: a slow clean", tasks=frozenset({"fill"}))
+
+        def clean(self, observation, /):
+            calls.append(1)
+            time.sleep(0.4)
+            return CleanResult(observation.bridged())
+
+    monkeypatch.setitem(registry._registered, "test-slow", Slow)
+    s = window.session
+    for _ in range(4):  # ticked, unticked and ticked again while it runs or waits
+        s.set_specs(["identity", "test-widths", "test-slow"])
+        qtbot.wait(30)
+        s.set_specs(["identity", "test-widths"])
+        qtbot.wait(30)
+    s.set_specs(["identity", "test-widths", "test-slow"])
+    settle(qtbot, window)
+    assert len(calls) == 1 and isinstance(s.runs["test-slow"], EngineRun) and not s.running
+
+
 def test_changing_the_engine_recomputes_on_the_worker(window, qtbot):
     s = window.session
     with qtbot.waitSignal(s.busyChanged, timeout=5000):
@@ -250,11 +291,16 @@ def test_a_take_without_ground_truth_and_no_run_yet_says_what_the_plot_will_show
     assert "no ground truth" in note.get_text() and "how far it moved the recording" in note.get_text()
 
 
-def test_opening_a_bad_take_reports_it(window, qtbot):
+def test_opening_a_bad_take_reports_it_and_the_panel_shows_the_take_that_stays(window, qtbot):
+    panel, shown = window.controls.take, window.session.take
+    panel.clip.setCurrentText("no/such/clip")
+    panel.seed.setValue(shown.seed + 5)
     with qtbot.waitSignal(window.session.message, timeout=10000) as blocker:
-        window.session.open("no/such/clip")
+        panel.apply()
     assert "cannot open no/such/clip" in blocker.args[0]
-    assert window.session.take is not None, "the previous take stays"
+    assert window.session.take is shown, "the previous take stays"
+    qtbot.waitUntil(lambda: panel.clip.currentText() == shown.source, timeout=5000)
+    assert panel.seed.value() == shown.seed, "a later edit is not of the take that failed"
 
 
 def test_dragging_in_the_3d_views_turns_and_zooms_the_linked_cameras(window, qtbot):
@@ -377,6 +423,8 @@ def test_a_take_without_suspects_says_so(window, qtbot, tiny_walk):
     s.set_specs([])
     still = tiny_walk.replace(angles_deg=np.zeros_like(tiny_walk.angles_deg))  # a pose held: nothing to flag
     s.set_take(make_take(still, "none", source="still"))
+    assert s.jump_to_suspect(1) is None  # before the worker has inspected it: not "none found"
+    assert window.controls.log.item(0).text() == "the take is still being inspected"
     settle(qtbot, window)
     assert window.transport.suspects.intervals == [] and s.jump_to_suspect(1) is None
     assert window.controls.log.item(0).text() == "no suspicious frames in this take"
@@ -458,6 +506,10 @@ def test_export_video_writes_the_shown_playback(window, qtbot, tmp_path, monkeyp
     assert not window.session.export_video(str(cancelled), progress=lambda done, total: done < 3)
     assert f"video cancelled: {cancelled} not written" in window.controls.log.item(0).text()
     assert not cancelled.exists()
+    window.session.set_specs(["identity", "test-boom"], "test-boom")  # the shown engine has no result
+    settle(qtbot, window)
+    assert window.session.export_video(str(out))
+    assert "(test-boom left out: no result yet)" in window.controls.log.item(0).text()
 
 
 def test_measure_playback_counts_the_frames_shown(window):

@@ -92,6 +92,7 @@ class TakePanel(QGroupBox):
         form.addRow("seed", row)
         form.addRow("", self.fill)
         session.takeChanged.connect(self.show_take)
+        session.openFailed.connect(self.show_take)  # back to the take shown: a later edit is not of the failed one
 
     def _catalogue(self) -> list[str]:
         from ..data import catalogue
@@ -104,6 +105,8 @@ class TakePanel(QGroupBox):
 
     def show_take(self) -> None:
         take = self.session.take
+        if take is None:
+            return
         self.clip.setCurrentText(take.source)
         self.clip.lineEdit().setCursorPosition(0)  # the dataset and category, where a long id is cut
         self.corruption.setText(take.corruption)

@@ -70,6 +70,7 @@ class Session(QObject):
     selectionChanged = Signal()
     busyChanged = Signal(str)  # what the worker is doing, "" when idle
     message = Signal(str)
+    openFailed = Signal()  # a take asked for did not open: the shown one stays
 
     def __init__(self, parent: QObject | None = None) -> None:
         super().__init__(parent)
@@ -95,6 +96,7 @@ class Session(QObject):
         self._rules: tuple[Take, Inspection] | None = None  # the rules' inspection of a take
         self._inspection: tuple[tuple, Inspection] | None = None  # (what it was made of, it)
         self.running: set[str] = set()  # the specs the worker has begun cleaning with
+        self._queued: set[str] = set()  # the specs with a run of this take on the worker, begun or not
         self._seconds_per_frame: dict[str, float] = {}  # each spec's last run
 
     # -- the worker -----------------------------------------------------------------
@@ -106,10 +108,11 @@ class Session(QObject):
         failed: Callable[[str], None],
         wanted: Callable[[], bool],
         started: Callable[[], None] | None = None,
+        settled: Callable[[], None] | None = None,
     ) -> None:
         """Run ``fn`` on the worker, then ``done(value)`` or ``failed(text)`` here, unless
         ``wanted()`` has turned False meanwhile (a newer take or request); ``started()``
-        here when the worker begins it."""
+        here when the worker begins it, ``settled()`` here when it is over, wanted or not."""
         job = _Job(fn, lambda: not wanted())
         if started is not None:
             job.signals.started.connect(lambda: wanted() and started())
@@ -122,6 +125,8 @@ class Session(QObject):
             for signal in signals:
                 signal.disconnect()
             self.busyChanged.emit(self._busy_text())
+            if settled is not None:
+                settled()
             if wanted():
                 handler(value)
 
@@ -164,16 +169,22 @@ class Session(QObject):
             f"loading {source}",
             lambda: open_take(source, corruption, seed, fill_suspects),
             self.set_take,
-            lambda text: self.message.emit(f"cannot open {source}: {text}"),
+            lambda text: self._open_failed(f"cannot open {source}: {text}"),
             lambda: request == self._opening,
         )
+
+    def _open_failed(self, text: str) -> None:
+        self.message.emit(text)
+        self.openFailed.emit()
 
     def set_take(self, take: Take) -> None:
         """Show ``take`` and run every engine on it."""
         self._generation += 1
         self.set_playing(False)
-        self.take, self.runs, self.frame, self.running = take, {}, 0, set()
-        self.selected = tuple(j for j in self.selected if j < take.motion.skeleton.n_joints)
+        names = [self.take.motion.skeleton.names[j] for j in self.selected] if self.take is not None else []
+        self.take, self.runs, self.frame, self.running, self._queued = take, {}, 0, set(), set()
+        kept = take.motion.skeleton.names  # the selected joints, by name: another skeleton's index is another joint
+        self.selected = tuple(kept.index(name) for name in names if name in kept)
         self.takeChanged.emit()
         self.frameChanged.emit(0)
         self._run(self.specs)
@@ -195,7 +206,7 @@ class Session(QObject):
         """The engine list; runs the new ones. ``current`` is shown as "cleaned" (the
         first spec when not given or not in the list)."""
         specs = list(dict.fromkeys(s.strip() for s in specs if s.strip()))
-        new = [s for s in specs if s not in self.runs]
+        new = [s for s in specs if s not in self.runs and s not in self._queued]  # ticked again: its run goes on
         self.specs = specs
         self.runs = {s: r for s, r in self.runs.items() if s in specs}
         self.current = (
@@ -213,7 +224,14 @@ class Session(QObject):
         if take is None:
             return
         generation = self._generation
+
+        def settled(spec: str) -> None:  # done, failed or dropped: a later tick runs it again
+            if generation == self._generation:
+                self._queued.discard(spec)
+                self.running.discard(spec)
+
         for spec in sorted(specs, key=lambda s: (s != self.current, self.expected_seconds_per_frame(s))):
+            self._queued.add(spec)
             self._submit(
                 f"cleaning with {spec}",
                 lambda spec=spec: run_engine(spec, take),
@@ -221,6 +239,7 @@ class Session(QObject):
                 lambda text, spec=spec: self._arrived(spec, text),
                 lambda spec=spec: generation == self._generation and spec in self.specs,
                 lambda spec=spec: self._started(spec),
+                lambda spec=spec: settled(spec),
             )
 
     def expected_seconds_per_frame(self, spec: str) -> float:
@@ -242,7 +261,6 @@ class Session(QObject):
         self.runsChanged.emit()
 
     def _arrived(self, spec: str, run: EngineRun | str) -> None:
-        self.running.discard(spec)
         if spec not in self.specs:
             return
         self.runs[spec] = run
@@ -304,7 +322,9 @@ class Session(QObject):
         if written is None:
             self.message.emit(f"video cancelled: {path} not written")
             return False
-        self.message.emit(f"wrote the video of {', '.join(r.spec for r in runs) or 'the take'} to {path}")
+        missing = [spec for spec in self.shown if spec not in {r.spec for r in runs}]  # running, or failed
+        left_out = f" ({', '.join(missing)} left out: no result yet)" if missing else ""
+        self.message.emit(f"wrote the video of {', '.join(r.spec for r in runs) or 'the take'} to {path}{left_out}")
         return True
 
     def set_current(self, spec: str) -> None:
@@ -346,7 +366,8 @@ class Session(QObject):
         ``message``. Returns it (None when there is none)."""
         intervals = self.suspects()
         if not intervals:
-            self.message.emit("no suspicious frames in this take")
+            inspected = self.inspection() is not None
+            self.message.emit("no suspicious frames in this take" if inspected else "the take is still being inspected")
             return None
         starts = sorted({i.first for i in intervals})
         later = [f for f in starts if (f - self.frame) * direction > 0]

@@ -266,11 +266,12 @@ def bone_choice(skeleton, selected: tuple[int, ...] = (), n: int = 6) -> list[in
     chosen = [j for j in selected if j in bones][:n]
     if chosen:
         return chosen
-    lengths = np.full(skeleton.n_joints, -1.0)
-    lengths[bones] = np.linalg.norm(skeleton.offsets[bones], axis=1)
-    return sorted(np.argsort(-lengths)[:n].tolist())
+    lengths = np.linalg.norm(skeleton.offsets[bones], axis=1)
+    return sorted(np.asarray(bones, int)[np.argsort(-lengths)[:n]].tolist())  # fewer where the skeleton has fewer
 
 
+#: lines of a failed engine's message a pane shows (the whole of it is in the Messages list)
+NOTE_LINES = 12
 NO_TRUTH = "no ground truth:\nthe take is shown as recorded\n(corruption none)"
 
 
@@ -287,6 +288,8 @@ def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str
     corruption = take.corruption.replace("+", "\n+")  # a line per model: fits a narrow pane
     noisy_title = f"noisy\n{corruption}" if take.truth is not None else "noisy\nas recorded"
     panes = [Pane(noisy_title, take.noisy.points, take.noisy.errors_cm, take.missing)]
+    # a failure's lines as wide as a pane: 34 characters where three share the view
+    chars = max(12, 102 // (1 + len(specs) + (not compare)))
     for spec in specs:
         run = runs.get(spec)
         title = f"cleaned\n{spec}"
@@ -294,7 +297,9 @@ def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str
             title += f"\n{run.weights_kind}" if run.weights_kind else ""
             panes.append(Pane(title, run.track.points, run.track.errors_cm, ghost=ghost))
         else:
-            note = "running..." if run is None else "failed:\n" + textwrap.fill(run, 34)
+            lines = textwrap.wrap(run or "", chars)
+            lines = lines if len(lines) <= NOTE_LINES else [*lines[: NOTE_LINES - 1], "... (the rest in Messages)"]
+            note = "running..." if run is None else "\n".join(["failed:", *lines])
             panes.append(Pane(title, ghost=ghost, note=note))
     if not compare:
         panes.append(

@@ -30,6 +30,10 @@ def plot_bone_lengths(
     units, colour); bones: child joint index of each bone shown; truth: (F, J, 3);
     exact: by source index, the positions (F, J, 3) of that source after IK, whose median
     lengths are marked beside its boxes."""
+    if not bones:  # a lone root, or a root chain alone
+        ax.text(0.5, 0.5, "no bones: the skeleton is its root alone", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return
     column = {j: k for k, j in enumerate(j for j, p in enumerate(skeleton.parents) if p >= 0)}
     cols = [column[j] for j in bones]
     n = len(sources)
