@@ -188,12 +188,3 @@ def test_several_datasets_are_selected_by_names_joined_with_commas(clips):
     pooled = select(clips, "train", dataset="cmu, bandai")
     assert pooled == [c for c in select(clips, "train") if c.dataset in ("cmu", "bandai")]
     assert {c.dataset for c in pooled} == {"cmu", "bandai"}
-
-
-def test_takes_beside_a_data_set_s_folder_are_listed_too(tmp_path, data_root):
-    take = (data_root / "cmu" / "walk" / "02_01.bvh").read_bytes()
-    for path in ("studio/a.bvh", "mine/b.bvh", "loose.bvh"):
-        (tmp_path / path).parent.mkdir(exist_ok=True)
-        (tmp_path / path).write_bytes(take)
-    (tmp_path / "studio" / "MANIFEST.csv").write_text("file\na.bvh\n")
-    assert [(c.id, c.dataset) for c in catalogue(tmp_path)] == [("loose", ""), ("mine/b", ""), ("studio/a", "studio")]

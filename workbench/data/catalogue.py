@@ -187,12 +187,12 @@ def catalogue(root: str | Path | None = None) -> list[Clip]:
     if (root / "MANIFEST.csv").exists():
         clips = _dataset_clips(root, root.name)
     else:
+        clips = []
         subdirs = [d for d in sorted(root.iterdir()) if d.is_dir() and (d / "MANIFEST.csv").exists()]
-        inside = [d.resolve() for d in subdirs]
-        # the takes outside the data sets' folders too, of no data set
-        clips = [c for c in _dataset_clips(root, "") if not any(c.path.resolve().is_relative_to(d) for d in inside)]
         for d in subdirs:
             clips += _dataset_clips(d, d.name)
+        if not subdirs:
+            clips = _dataset_clips(root, "")
     return sorted(clips, key=lambda c: c.id)
 
 
