@@ -85,6 +85,9 @@ def test_folder_of_bvh_files_without_manifest(tmp_path, data_root):
     assert [(c.id, c.category, c.split) for c in clips] == [("dance/x_01", "dance", "")]
     (tmp_path / "dance" / "x_01.amc").write_text("")  # the same take in another format: ids keep the suffix
     assert [c.id for c in catalogue(tmp_path)] == ["dance/x_01.amc", "dance/x_01.bvh"]
+    assert find_clip("x_01.bvh", tmp_path).path.suffix == ".bvh"
+    with pytest.raises(KeyError, match="'x_01' is kept in two formats: name one, dance/x_01.amc or dance/x_01.bvh"):
+        find_clip("x_01", tmp_path)
 
 
 def test_a_manifest_that_cannot_be_read_is_named_with_its_row(tmp_path, data_root):
@@ -93,7 +96,9 @@ def test_a_manifest_that_cannot_be_read_is_named_with_its_row(tmp_path, data_roo
     (folder / "a.bvh").write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
     for text, message in (
         ("file,frames\na.bvh,many\n", r"MANIFEST.csv:2: 'frames' or 'fps' is not a number"),
-        ("name\na.bvh\n", r"MANIFEST.csv:2: no 'file' column"),
+        ("name\na.bvh\n", r"MANIFEST.csv:2: no file named"),
+        ("file,frames\n,12\n", r"MANIFEST.csv:2: no file named"),  # an empty cell
+        ("frames,file\n12\n", r"MANIFEST.csv:2: no file named"),  # a short row
         (b"file\n\xff.bvh\n", r"MANIFEST.csv cannot be read"),
     ):
         (folder / "MANIFEST.csv").write_bytes(text if isinstance(text, bytes) else text.encode())

@@ -48,9 +48,6 @@ def split_engine_specs(values: list[str]) -> list[str]:
                 specs.append(piece)
     if values and not specs:
         raise UserError(f"no engine named in {' '.join(values)!r}: name one or more, e.g. 'kalman,ebf'")
-    if len(set(specs)) < len(specs):  # a table has a row per engine: each once
-        twice = sorted({s for s in specs if specs.count(s) > 1})
-        raise UserError(f"{', '.join(twice)} named twice: name each engine once")
     return specs
 
 
@@ -156,8 +153,10 @@ def cmd_skeleton(args) -> int:
     motion = _read(args.take)
     s = motion.skeleton
     overrides = read_mapping(args.mapping) if args.mapping else None
-    # as the engines map it: the body view, without a reference node above the body root
-    mapping = map_humanoid(body_skeleton(s), overrides)  # one it refuses: its one line, before anything is printed
+    # refused as the engines refuse it, on the body view (no reference node above the body
+    # root): its one line, before anything is printed; described on the whole skeleton
+    map_humanoid(body_skeleton(s), overrides)
+    mapping = map_humanoid(s, overrides)
     print(
         f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
     )
@@ -600,6 +599,9 @@ def cmd_bench(args) -> int:
     from .evaluate import run_benchmark
 
     specs = split_engine_specs(args.engines)
+    if len(set(specs)) < len(specs):  # a table has a row per engine: each once
+        twice = sorted({s for s in specs if specs.count(s) > 1})
+        raise UserError(f"{', '.join(twice)} named twice: name each engine once")
     if args.json:  # before the benchmark's minutes, not after
         from .io.atomic import check_writable
 
@@ -1138,7 +1140,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     def take_opts(sp, remembered: bool = False):
         """The take's arguments; ``remembered``: the app's, whose defaults are the last session's."""
-        last = "the last session's, else " if remembered else ""
+        last = "with no argument at all the last session's, else " if remembered else ""
         sp.add_argument(
             "clip", nargs="?", default=DEFAULT_CLIP, help=f"clip id or BVH/AMC file (default {last}{DEFAULT_CLIP})"
         )

@@ -159,6 +159,16 @@ def test_an_engine_ticked_again_while_it_runs_runs_once(window, qtbot, monkeypat
     s.set_specs(["identity", "test-widths", "test-slow"])
     settle(qtbot, window)
     assert len(calls) == 1 and isinstance(s.runs["test-slow"], EngineRun) and not s.running
+    # unticked while it waits, so the worker skips it, and ticked again before the skip is
+    # heard: it runs after all (it was left with an empty failure)
+    s.set_take(s.take)
+    qtbot.waitUntil(lambda: "test-slow" in s.running, timeout=5000)
+    s.set_specs(["identity", "test-widths", "test-slow", "lerp"])
+    s.set_specs(["identity", "test-widths", "test-slow"])
+    time.sleep(0.8)  # the worker ends the slow run and skips lerp's; no event is handled meanwhile
+    s.set_specs(["identity", "test-widths", "test-slow", "lerp"])
+    settle(qtbot, window)
+    assert isinstance(s.runs.get("lerp"), EngineRun) and not s.running
 
 
 def test_changing_the_engine_recomputes_on_the_worker(window, qtbot):
@@ -428,6 +438,9 @@ def test_a_take_without_suspects_says_so(window, qtbot, tiny_walk):
     settle(qtbot, window)
     assert window.transport.suspects.intervals == [] and s.jump_to_suspect(1) is None
     assert window.controls.log.item(0).text() == "no suspicious frames in this take"
+    s._inspection_failed(s.take, "a fault")  # as when the rules raise on the worker
+    assert s.jump_to_suspect(1) is None
+    assert window.controls.log.item(0).text() == "the take could not be inspected: no suspicious frames to show"
 
 
 def test_the_window_fits_a_laptop_screen_and_the_panel_collapses(window, qtbot):
@@ -509,7 +522,7 @@ def test_export_video_writes_the_shown_playback(window, qtbot, tmp_path, monkeyp
     window.session.set_specs(["identity", "test-boom"], "test-boom")  # the shown engine has no result
     settle(qtbot, window)
     assert window.session.export_video(str(out))
-    assert "(test-boom left out: no result yet)" in window.controls.log.item(0).text()
+    assert "(test-boom left out: failed)" in window.controls.log.item(0).text()
 
 
 def test_measure_playback_counts_the_frames_shown(window):

@@ -38,11 +38,13 @@ class _Signals(QObject):
     started = Signal()
     done = Signal(object)
     failed = Signal(str)
+    skipped = Signal()
 
 
 class _Job(QRunnable):
     """Runs ``fn()`` on a pool thread and posts its value or its error text back;
-    skips ``fn`` when ``stale()`` says its result would be dropped anyway."""
+    skips ``fn`` when ``stale()`` says its result would be dropped anyway, and says so
+    (``skipped``)."""
 
     def __init__(self, fn: Callable[[], object], stale: Callable[[], bool]) -> None:
         super().__init__()
@@ -50,7 +52,7 @@ class _Job(QRunnable):
 
     def run(self) -> None:
         if self.stale():
-            self.signals.failed.emit("")
+            self.signals.skipped.emit()
             return
         self.signals.started.emit()
         try:
@@ -93,7 +95,7 @@ class Session(QObject):
         self._timer.setInterval(TICK_MS)
         self._timer.timeout.connect(self._tick)
         self._clock = (0.0, 0)  # (time, frame) playback started from
-        self._rules: tuple[Take, Inspection] | None = None  # the rules' inspection of a take
+        self._rules: tuple[Take, Inspection | None] | None = None  # the rules' inspection of a take (None: failed)
         self._inspection: tuple[tuple, Inspection] | None = None  # (what it was made of, it)
         self.running: set[str] = set()  # the specs the worker has begun cleaning with
         self._queued: set[str] = set()  # the specs with a run of this take on the worker, begun or not
@@ -121,17 +123,21 @@ class Session(QObject):
             del self._jobs[job]
             # Qt holds the slots, and the slots hold the job and what its function
             # captured (a take): let go of them, or every take ever opened stays alive
-            signals = [job.signals.done, job.signals.failed] + ([job.signals.started] if started else [])
-            for signal in signals:
+            signals = [job.signals.done, job.signals.failed, job.signals.skipped]
+            for signal in signals + ([job.signals.started] if started else []):
                 signal.disconnect()
             self.busyChanged.emit(self._busy_text())
+            if handler is None and wanted():  # skipped on the worker, wanted again since: it runs after all
+                self._submit(what, fn, done, failed, wanted, started, settled)
+                return
             if settled is not None:
                 settled()
-            if wanted():
+            if handler is not None and wanted():
                 handler(value)
 
         job.signals.done.connect(lambda value: finish(done, value))
         job.signals.failed.connect(lambda text: finish(failed, text))
+        job.signals.skipped.connect(lambda: finish(None, None))
         self._jobs[job] = what
         self.busyChanged.emit(self._busy_text())
         self._pool.start(job)
@@ -193,9 +199,13 @@ class Session(QObject):
             "inspecting the take",
             lambda: inspect_take(take),
             self._inspected,
-            lambda text: self.message.emit(f"cannot inspect the take: {text}"),
+            lambda text: self._inspection_failed(take, text),
             lambda: generation == self._generation,
         )
+
+    def _inspection_failed(self, take: Take, text: str) -> None:
+        self._rules = take, None
+        self.message.emit(f"cannot inspect the take: {text}")
 
     def _inspected(self, rules: Inspection) -> None:
         self._rules = self.take, rules
@@ -322,8 +332,14 @@ class Session(QObject):
         if written is None:
             self.message.emit(f"video cancelled: {path} not written")
             return False
-        missing = [spec for spec in self.shown if spec not in {r.spec for r in runs}]  # running, or failed
-        left_out = f" ({', '.join(missing)} left out: no result yet)" if missing else ""
+        missing = [spec for spec in self.shown if spec not in {r.spec for r in runs}]
+        failed = [spec for spec in missing if isinstance(self.runs.get(spec), str)]
+        waiting = [spec for spec in missing if spec not in failed]
+        left_out = "".join(
+            f" ({', '.join(specs)} left out: {why})"
+            for specs, why in ((failed, "failed"), (waiting, "still running"))
+            if specs
+        )
         self.message.emit(f"wrote the video of {', '.join(r.spec for r in runs) or 'the take'} to {path}{left_out}")
         return True
 
@@ -347,7 +363,7 @@ class Session(QObject):
         """The take's suspicious samples: the rules' (made on the worker after the take is
         shown; None until then) and the evidence of every checked engine's finished run
         (rejected samples, disagreement)."""
-        if self.take is None or self._rules is None or self._rules[0] is not self.take:
+        if self.take is None or self._rules is None or self._rules[0] is not self.take or self._rules[1] is None:
             return None
         runs = [r for s in self.specs if isinstance(r := self.runs.get(s), EngineRun)]
         key = (self.take, tuple(map(id, runs)))
@@ -366,8 +382,12 @@ class Session(QObject):
         ``message``. Returns it (None when there is none)."""
         intervals = self.suspects()
         if not intervals:
-            inspected = self.inspection() is not None
-            self.message.emit("no suspicious frames in this take" if inspected else "the take is still being inspected")
+            if self.inspection() is not None:
+                self.message.emit("no suspicious frames in this take")
+            elif self._rules is not None and self._rules[0] is self.take:  # its inspection failed
+                self.message.emit("the take could not be inspected: no suspicious frames to show")
+            else:
+                self.message.emit("the take is still being inspected")
             return None
         starts = sorted({i.first for i in intervals})
         later = [f for f in starts if (f - self.frame) * direction > 0]

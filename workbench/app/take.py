@@ -54,9 +54,21 @@ def load_motion(source: str) -> Motion:
     from ..data import find_clip, without_reference_frame
 
     path = Path(source).expanduser()
-    if path.suffix.lower() in MOTION_SUFFIXES or path.exists():
+    if path.exists() or (path.suffix.lower() in MOTION_SUFFIXES and not _is_clip_id(source)):
         return without_reference_frame(read_motion(path)).replace(name=path.stem)
     return find_clip(source).load()
+
+
+def _is_clip_id(source: str) -> bool:
+    """Whether ``source`` names a catalogue clip (a take kept in two formats has ids with
+    their suffix, ``kick/11_01.amc``)."""
+    from ..data import find_clip
+
+    try:
+        find_clip(source)
+    except (KeyError, OSError):
+        return False
+    return True
 
 
 def sidecar_mask(source: str, motion: Motion) -> np.ndarray | None:
@@ -298,7 +310,7 @@ def scene_panes(take: Take, specs: list[str], runs: Mapping[str, EngineRun | str
             panes.append(Pane(title, run.track.points, run.track.errors_cm, ghost=ghost))
         else:
             lines = textwrap.wrap(run or "", chars)
-            lines = lines if len(lines) <= NOTE_LINES else [*lines[: NOTE_LINES - 1], "... (the rest in Messages)"]
+            lines = lines if len(lines) <= NOTE_LINES else [*lines[: NOTE_LINES - 1], "... (see Messages)"]
             note = "running..." if run is None else "\n".join(["failed:", *lines])
             panes.append(Pane(title, ghost=ghost, note=note))
     if not compare:

@@ -265,6 +265,16 @@ def _lowest_common_ancestor(tree: _Tree, joints: list[int]) -> int:
     return max(common, key=lambda j: tree.depth[j]) if common else -1
 
 
+def unknown_canonical(names) -> str | None:
+    """What is wrong with ``names`` as canonical joints (a mapping file's keys): the ones
+    there are not, and the ones there are; None where every one is."""
+    unknown = sorted(set(names) - set(CANONICAL_JOINTS))
+    if not unknown:
+        return None
+    what = "a canonical joint" if len(unknown) == 1 else "canonical joints"
+    return f"{', '.join(unknown)}: not {what}; they are {', '.join(CANONICAL_JOINTS)}"
+
+
 def map_humanoid(skeleton: Skeleton, overrides: Mapping[str, str | None] | None = None) -> HumanoidMapping:
     """The canonical joints of ``skeleton`` (rules in the module docstring); ``overrides``
     maps canonical joint names to the take's joint names (None: absent), set before the
@@ -278,12 +288,8 @@ def map_humanoid(skeleton: Skeleton, overrides: Mapping[str, str | None] | None 
     """
     overrides = dict(overrides or {})
     names = skeleton.names
-    unknown = sorted(set(overrides) - set(CANONICAL_JOINTS))
-    if unknown:
-        raise HumanoidError(
-            f"mapping: {', '.join(unknown)}: not {'a canonical joint' if len(unknown) == 1 else 'canonical joints'}; "
-            f"they are {', '.join(CANONICAL_JOINTS)}"
-        )
+    if (problem := unknown_canonical(overrides)) is not None:
+        raise HumanoidError(f"mapping: {problem}")
     pinned: dict[str, int] = {}
     for c, name in overrides.items():
         if name is not None and name not in names:

@@ -135,7 +135,7 @@ def _dataset_clips(folder: Path, dataset: str) -> list[Clip]:
             )
         )
     ids = Counter(c.id for c in clips)  # a take in two formats (11_01.bvh, 11_01.amc): each id keeps its suffix
-    return [dataclasses.replace(c, id=c.id + c.path.suffix.lower()) if ids[c.id] > 1 else c for c in clips]
+    return [dataclasses.replace(c, id=c.id + c.path.suffix) if ids[c.id] > 1 else c for c in clips]
 
 
 def _manifest_clips(manifest: Path, dataset: str) -> list[Clip]:
@@ -146,15 +146,14 @@ def _manifest_clips(manifest: Path, dataset: str) -> list[Clip]:
     try:
         with open(manifest, newline="", encoding="utf-8") as fh:
             for n, row in enumerate(csv.DictReader(fh), start=2):  # line 1: the header
+                rel = row.get("file")
                 try:
-                    rel = row["file"]
                     frames, fps = int(row.get("frames") or 0), float(row.get("fps") or 0.0)
-                except (KeyError, TypeError, ValueError) as err:
-                    what = (
-                        "no 'file' column"
-                        if isinstance(err, KeyError)
-                        else f"'frames' or 'fps' is not a number ({err})"
-                    )
+                except (TypeError, ValueError) as err:
+                    what = f"'frames' or 'fps' is not a number ({err})"
+                else:
+                    what = "" if rel and Path(rel).name else "no file named (a 'file' column, filled in every row)"
+                if what:
                     raise DataNotFoundError(
                         f"{manifest}:{n}: {what}; mend the file, or move it away to list the folder's takes"
                     ) from None
@@ -234,5 +233,9 @@ def find_clip(name: str, root: str | Path | None = None) -> Clip:
     if len(hits) == 1:
         return hits[0]
     if not hits:
+        stems = {c.id: c.id[: -len(c.path.suffix)] for c in clips if c.id.endswith(c.path.suffix)}
+        formats = [i for i, stem in stems.items() if stem == name or stem.endswith("/" + name)]
+        if formats:  # a take kept in two formats: its ids keep their suffixes
+            raise KeyError(f"{name!r} is kept in two formats: name one, {' or '.join(formats[:2])}")
         raise KeyError(f"no clip named {name!r} in the catalogue; `workbench data` lists them")
     raise KeyError(f"{name!r} is ambiguous: {', '.join(c.id for c in hits[:6])}")

@@ -14,16 +14,13 @@ def read_mapping(path: str | Path) -> dict[str, str | None]:
     """The pinned joints of a mapping file. Raises MotionFileError, naming the file, for one
     that cannot be read, is not JSON, is not an object of names (or nulls), or names a
     canonical joint there is not (whatever the take: before any engine is asked)."""
-    from ..core.humanoid import CANONICAL_JOINTS
+    from ..core.humanoid import unknown_canonical
 
     doc = read_json_file(path, "mapping")
     if not isinstance(doc, dict) or not all(isinstance(v, str) or v is None for v in doc.values()):
         raise MotionFileError(
             path, 'a mapping file is one JSON object of canonical joint to joint name, e.g. {"neck": "Neck1"}'
         )
-    unknown = [name for name in doc if name not in CANONICAL_JOINTS]
-    if unknown:
-        raise MotionFileError(
-            path, f"{', '.join(map(repr, unknown))}: not a canonical joint; they are {', '.join(CANONICAL_JOINTS)}"
-        )
+    if (problem := unknown_canonical(doc)) is not None:
+        raise MotionFileError(path, problem)
     return doc
