@@ -167,6 +167,29 @@ def test_every_engine_s_clean_refuses_what_it_cannot_clean_and_what_it_must_not_
     with pytest.raises(EngineError, match="test-broken returned missing or infinite values: a fault of the engine"):
         Broken().clean(Observation(walk))
 
+    class Short(Engine):
+        info = EngineInfo(name="test-short", summary="test: drops a frame", tasks=frozenset({"denoise"}))
+
+        def clean(self, observation, /):
+            return CleanResult(observation.bridged().slice(0, -1))
+
+    with pytest.raises(EngineError, match=rf"test-short returned {walk.n_frames - 1} frames .*: a fault of the engine"):
+        Short().clean(Observation(walk))
+
+
+def test_engines_lists_a_plugin_without_info_as_broken(monkeypatch, capsys):
+    from workbench.cli import main
+
+    class NoInfo(Engine):
+        def clean(self, observation, /):
+            return CleanResult(observation.bridged())
+
+    monkeypatch.setitem(registry._registered, "test-noinfo", NoInfo)
+    assert main(["engines"]) == 0
+    out = capsys.readouterr().out
+    assert "test-noinfo      (broken: " in out and "NoInfo sets no `info = EngineInfo(...)`" in out
+    assert "kalman " in out, "the other engines are listed"
+
 
 def test_every_trained_engine_has_its_own_weights_folder_and_its_committed_weights_load():
     folders = {}

@@ -187,6 +187,11 @@ def test_no_code_of_the_package_can_unpickle_a_file():
 
 def test_weights_with_nan_are_never_saved_nor_loaded_and_an_empty_file_is_refused(saved, tmp_path_factory):
     empty = tmp_path_factory.mktemp("nan")
+    manifest = {"engine": "demo", "skeleton_signature": "x"}
+    with pytest.raises(EngineError, match="state_arrays gives arrays of numbers only"):  # a plugin's mistakes
+        save_weights(empty, {"w": np.zeros(2), "name": "text"}, manifest)
+    with pytest.raises(EngineError, match="are a list: state_arrays gives a dict of arrays"):
+        save_weights(empty, [np.zeros(2)], manifest)
     with pytest.raises(EngineError, match="NaN or infinite values"):
         save_weights(empty, {"w": np.array([1.0, np.nan])}, {"engine": "demo", "skeleton_signature": "x"})
     assert not any(empty.iterdir())

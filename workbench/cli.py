@@ -119,17 +119,23 @@ def cmd_engines(args) -> int:
     import dataclasses
 
     from . import registry
-    from .engine import WEIGHTS_OPTION
+    from .engine import WEIGHTS_OPTION, EngineInfo
 
     for name in registry.available():
         try:
             cls = registry.get(name)
-        except Exception as err:  # show broken plugins instead of hiding them
-            print(f"{name:16s} (failed to load: {err})")
+        except Exception as err:  # show broken plugins instead of hiding them (its message names the engine)
+            print(f"{name:16s} ({err})")
             continue
-        info = cls.info
+        info = getattr(cls, "info", None)
+        if not isinstance(info, EngineInfo):
+            print(f"{name:16s} (broken: {cls.__module__}.{cls.__name__} sets no `info = EngineInfo(...)`)")
+            continue
         params = ", ".join(
-            [f"{f.name}={f.default}" for f in dataclasses.fields(cls.Params)]
+            [
+                f"{f.name}={f.default if f.default is not dataclasses.MISSING else '(no default: a fault)'}"
+                for f in dataclasses.fields(cls.Params)
+            ]
             + ([f"{WEIGHTS_OPTION}=DIR (trained weights; default: the committed ones)"] if info.trainable else [])
         )
         flags = "/".join(sorted(info.tasks)) + f", {info.space}" + (", trainable" if info.trainable else "")

@@ -222,8 +222,9 @@ def _checked_clean(clean):
     engine may return, each with an error that says so: TypeError for an input that is
     not an :class:`Observation` and for a result that is not a :class:`CleanResult`;
     EngineError for an observation with no channel observed (an engine would make every
-    value up) and for a result that is not finite everywhere, naming the engine and, for
-    a trained one, its weights (broken weights, a diverged training)."""
+    value up), for a result of another frame count, rate or skeleton layout than the
+    take's, and for one that is not finite everywhere, naming the engine and, for a
+    trained one, its weights (broken weights, a diverged training)."""
 
     @functools.wraps(clean)
     def checked(self, observation, /, **kwargs):
@@ -237,12 +238,21 @@ def _checked_clean(clean):
         result = clean(self, observation, **kwargs)
         if not isinstance(result, CleanResult):
             raise TypeError(f"{self.info.name}.clean returned a {type(result).__name__}, not a CleanResult")
-        motion = result.motion
+        motion, take = result.motion, observation.motion
+        if (
+            motion.n_frames != take.n_frames
+            or abs(motion.fps - take.fps) > 1e-9 * take.fps
+            or not motion.skeleton.same_layout(take.skeleton)
+        ):
+            raise EngineError(
+                f"{self.spec} returned {motion.n_frames} frames at {motion.fps:g} fps of another skeleton or rate than "
+                f"the take's {take.n_frames} at {take.fps:g}: a fault of the engine"
+            )
         parts = (motion.root_positions, motion.angles_deg, motion.translations)
         if not all(np.isfinite(a).all() for a in parts if a is not None):
             cause = (
-                f"its weights{f' ({self.weights_used_})' if self.weights_used_ else ''} are broken (a training "
-                "that diverged?): retrain them, or clean with the committed ones"
+                f"its weights{f' ({self.weights_used_})' if self.weights_used_ else ''} may be broken (a training "
+                "that diverged?: retrain them, or clean with the committed ones), or its code"
                 if self.info.trainable
                 else "a fault of the engine"
             )

@@ -146,8 +146,10 @@ def save_weights(folder: str | Path, arrays: Mapping[str, np.ndarray], manifest:
     """
     from .. import __version__
 
+    if not isinstance(arrays, Mapping):
+        raise EngineError(f"the trained weights are a {type(arrays).__name__}: state_arrays gives a dict of arrays")
     arrays = {k: np.asarray(v) for k, v in arrays.items()}
-    _refuse_non_finite(arrays, "the trained weights")
+    _refuse_non_finite(arrays, "the trained weights", "the engine's state_arrays gives arrays of numbers only")
     folder = Path(folder)
     with atomic_path(folder / WEIGHTS_FILE) as tmp:  # (it makes the folder)
         with open(tmp, "wb") as fh:
@@ -242,15 +244,16 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     return arrays, manifest
 
 
-def _refuse_non_finite(arrays: Mapping[str, np.ndarray], what: str) -> None:
+def _refuse_non_finite(
+    arrays: Mapping[str, np.ndarray], what: str, remedy: str = "they are damaged or not this project's; train again"
+) -> None:
     """Raise EngineError where an array holds other than real numbers (text, complex
-    numbers, objects) or NaN or infinite values: such weights would clean every take into
-    NaN, or fail with a message about something else."""
+    numbers, objects; the message ends with ``remedy``) or NaN or infinite values: such
+    weights would clean every take into NaN, or fail with a message about something else."""
     other = [f"{k} ({a.dtype})" for k, a in arrays.items() if a.dtype.kind not in "biuf"]
     if other:
         raise EngineError(
-            f"{what}: the weights hold arrays of other than real numbers ({', '.join(other[:3])}): they are "
-            "damaged or not this project's; train the engine again"
+            f"{what}: the weights hold arrays of other than real numbers ({', '.join(other[:3])}): {remedy}"
         )
     broken = [k for k, a in arrays.items() if a.dtype.kind == "f" and not np.isfinite(a).all()]
     if broken:
