@@ -227,3 +227,14 @@ def test_an_engine_that_does_not_stream_says_so():
     assert registry.create("ebf", pretrained=False).streams and not registry.create("kalman").streams
     with pytest.raises(EngineError, match="engine 'kalman' does not stream: .*ebf, bf and nn stream"):
         registry.create("kalman").stream(None, 120.0)
+
+
+def test_an_engine_whose_parameter_has_no_default_is_refused_when_made():
+    with pytest.raises(TypeError, match="Bare.Params: k without a default; every parameter needs one"):
+
+        class Bare(Engine):
+            info = EngineInfo(name="test-bare", summary="test", tasks=frozenset({"denoise"}))
+
+            @dataclasses.dataclass(frozen=True)
+            class Params:
+                k: int

@@ -347,10 +347,19 @@ class Engine:
 
     def __init_subclass__(cls, **kwargs) -> None:
         """Every engine's own ``clean`` is wrapped by :func:`_checked_clean`, which holds
-        its input and output to :meth:`clean`'s contract in one place."""
+        its input and output to :meth:`clean`'s contract in one place; a ``Params`` field
+        without a default is a TypeError when the class is made (a registered plugin's
+        shows in ``workbench engines``)."""
         super().__init_subclass__(**kwargs)
         if "clean" in cls.__dict__:
             cls.clean = _checked_clean(cls.__dict__["clean"])
+        params = cls.__dict__.get("Params")
+        if params is not None and dataclasses.is_dataclass(params):  # a spec sets only what it names
+            bare = [f.name for f in dataclasses.fields(params) if f.default is f.default_factory is dataclasses.MISSING]
+            if bare:
+                raise TypeError(
+                    f"{cls.__name__}.Params: {', '.join(bare)} without a default; every parameter needs one"
+                )
 
     def __init__(self, params: typing.Any = None) -> None:
         self.params = self.Params() if params is None else params

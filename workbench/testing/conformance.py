@@ -18,6 +18,7 @@ fitted on. A check raises AssertionError naming the engine and the broken rule, 
 from __future__ import annotations
 
 import dataclasses
+import tempfile
 from typing import Callable, Sequence
 
 import numpy as np
@@ -173,7 +174,9 @@ def check_unfitted(engine, name: str, motion: Motion, make_untrained: Callable[[
 def check_fit_returns_self_and_repeats(
     engine, name: str, make_untrained: Callable[[], Engine] | None = None, training: Sequence[Motion] | None = None, **_
 ) -> None:
-    """``fit`` returns the engine itself, and two seeded fits give the same state."""
+    """``fit`` returns the engine itself, two seeded fits give the same state, and that
+    state saved and loaded again is the same (so a ``state_arrays`` that gives no plain
+    arrays of numbers fails here, not at the end of a training)."""
     if not training:
         raise CheckSkipped("no training takes were given")
     if make_untrained is None:
@@ -186,6 +189,11 @@ def check_fit_returns_self_and_repeats(
     assert a.keys() == b.keys(), f"{name}: two fits saved different state"
     changed = [k for k in a if not np.array_equal(a[k], b[k])]
     assert not changed, f"{name}: two seeded fits on the same takes differ in {', '.join(changed[:5])}"
+    with tempfile.TemporaryDirectory() as folder:  # what it saves, it loads (state_arrays: arrays of numbers)
+        first.save(folder)
+        loaded = make_untrained().load(folder).state_arrays()
+    lost = [k for k in a if k not in loaded or not np.array_equal(np.asarray(a[k]), np.asarray(loaded[k]))]
+    assert not lost, f"{name}: saved and loaded again, its state differs in {', '.join(lost[:5])}"
 
 
 CHECKS: dict[str, Callable] = {
