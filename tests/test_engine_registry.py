@@ -238,3 +238,10 @@ def test_an_engine_whose_parameter_has_no_default_is_refused_when_made():
             @dataclasses.dataclass(frozen=True)
             class Params:
                 k: int
+
+
+def test_a_key_error_in_an_engine_is_its_fault_and_a_name_not_found_the_user_s():
+    from workbench.errors import NameNotFoundError, describe, user_errors
+
+    assert describe(KeyError("sigma_frames")) == "KeyError: 'sigma_frames'" and KeyError not in user_errors()
+    assert describe(NameNotFoundError("no clip named 'x'")) == "no clip named 'x'"

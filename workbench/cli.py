@@ -31,8 +31,10 @@ def _user_errors() -> tuple[type, ...]:
 
 
 def _message(err: BaseException) -> str:
-    """A user error's one line (a KeyError's text without the quotes str() adds)."""
-    return err.args[0] if isinstance(err, KeyError) and err.args else str(err)
+    """A user error's one line (a name not found without the quotes a KeyError's str() adds)."""
+    from .errors import NameNotFoundError
+
+    return err.args[0] if isinstance(err, NameNotFoundError) and err.args else str(err)
 
 
 def split_engine_specs(values: list[str]) -> list[str]:

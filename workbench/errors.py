@@ -9,6 +9,11 @@ class ClusterError(Exception):
     """A Dask cluster that cannot be reached at the address the user gave."""
 
 
+class NameNotFoundError(KeyError):
+    """A name the user gave (a clip id, a joint) that is not there, or names several; a
+    KeyError, as a lookup's. A KeyError of any other kind is a fault, not the user's."""
+
+
 def user_errors() -> tuple[type[BaseException], ...]:
     """The exception types whose message is meant for the user."""
     from .core.humanoid import HumanoidError
@@ -25,14 +30,14 @@ def user_errors() -> tuple[type[BaseException], ...]:
         DataNotFoundError,
         HumanoidError,
         ClusterError,
-        KeyError,
+        NameNotFoundError,
     )
 
 
 def describe(err: BaseException) -> str:
-    """One line for the user: a user error's message (a KeyError's without the quotes
-    str() adds), else the exception's type and message."""
-    if isinstance(err, KeyError) and err.args:
+    """One line for the user: a user error's message (a name not found without the
+    quotes a KeyError's str() adds), else the exception's type and message."""
+    if isinstance(err, NameNotFoundError) and err.args:
         return str(err.args[0])
     if isinstance(err, user_errors()):
         return str(err)

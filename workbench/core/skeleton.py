@@ -22,6 +22,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..errors import NameNotFoundError
+
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 
@@ -192,7 +194,7 @@ class Skeleton:
         try:
             return self.names.index(name)
         except ValueError:
-            raise KeyError(f"no joint named {name!r} in this skeleton") from None
+            raise NameNotFoundError(f"no joint named {name!r} in this skeleton") from None
 
     @property
     def bones(self) -> tuple[tuple[int, int], ...]:

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.motion import Motion, angle_joints
+from ..errors import NameNotFoundError
 from ..io import MOTION_SUFFIXES, read_motion
 from .roots import DataNotFoundError, files_under, find_data_root
 
@@ -236,6 +237,6 @@ def find_clip(name: str, root: str | Path | None = None) -> Clip:
         stems = {c.id: c.id[: -len(c.path.suffix)] for c in clips if c.id.endswith(c.path.suffix)}
         formats = [i for i, stem in stems.items() if stem == name or stem.endswith("/" + name)]
         if formats:  # a take kept in two formats: its ids keep their suffixes
-            raise KeyError(f"{name!r} is kept in two formats: name one, {' or '.join(formats[:2])}")
-        raise KeyError(f"no clip named {name!r} in the catalogue; `workbench data` lists them")
-    raise KeyError(f"{name!r} is ambiguous: {', '.join(c.id for c in hits[:6])}")
+            raise NameNotFoundError(f"{name!r} is kept in two formats: name one, {' or '.join(formats[:2])}")
+        raise NameNotFoundError(f"no clip named {name!r} in the catalogue; `workbench data` lists them")
+    raise NameNotFoundError(f"{name!r} is ambiguous: {', '.join(c.id for c in hits[:6])}")
