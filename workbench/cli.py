@@ -156,11 +156,10 @@ def cmd_skeleton(args) -> int:
     from .core.humanoid import map_humanoid
     from .core.upright import up_turn
     from .engine.view import body_skeleton
-    from .io.mapping import read_mapping
 
     motion = _read(args.take)
     s = motion.skeleton
-    overrides = read_mapping(args.mapping) if args.mapping else None
+    overrides = _pins(args)
     # refused as the engines refuse it, on the body view (no reference node above the body
     # root): its one line, before anything is printed; described on the whole skeleton
     map_humanoid(body_skeleton(s), overrides)
@@ -178,13 +177,17 @@ def cmd_skeleton(args) -> int:
     return 0
 
 
-def _pinned(engine, mapping: str | None):
-    """``engine`` (each stage of a pipeline) with the canonical joints the ``--mapping``
-    file ``mapping`` pins, if any, for its universal weights."""
-    if mapping:
-        from .io.mapping import read_mapping
+def _pins(args) -> dict[str, str | None] | None:
+    """The canonical joints the ``--mapping`` file pins (read once a command), or None."""
+    from .io.mapping import read_mapping
 
-        overrides = read_mapping(mapping)
+    return read_mapping(args.mapping) if args.mapping else None
+
+
+def _pinned(engine, overrides: dict[str, str | None] | None):
+    """``engine`` (each stage of a pipeline) with the canonical joints ``overrides`` pins
+    (:func:`_pins`), if any, for its universal weights."""
+    if overrides:
         for stage in getattr(engine, "stages", [engine]):
             stage.humanoid_overrides = overrides
     return engine
@@ -206,9 +209,9 @@ def cmd_inspect(args) -> int:
     dropped = recorded.n_frames - motion.n_frames
     observed, mask = take_mask(args.take, recorded.skeleton, recorded.n_frames, args.mask)  # the file's frames
     observed = observed_take(args.take, motion, None if observed is None else observed[dropped:]).observed
-    weights, points = [], []
+    weights, points, overrides = [], [], _pins(args)
     for spec in args.engine or []:
-        result = _pinned(registry.create(spec), args.mapping).clean(Observation(motion, observed))
+        result = _pinned(registry.create(spec), overrides).clean(Observation(motion, observed))
         points.append(result.motion.positions * motion.skeleton.unit_cm)
         if "robust_weight" in result.diagnostics:
             weights.append(result.diagnostics["robust_weight"])
@@ -408,7 +411,8 @@ def cmd_clean(args) -> int:
                 f"name another file, or pass --in-place, which keeps the raw take as {source.name}{BACKUP_SUFFIX}",
             )
             _check_bvh_output(output)
-    engine = _pinned(registry.create(args.engine), args.mapping)  # a bad spec or weights stop here, before any take
+    overrides = _pins(args)
+    engine = _pinned(registry.create(args.engine), overrides)  # a bad spec or weights stop here, before any take
     if not source.is_dir():
         from .batch import clean_file
 
@@ -450,18 +454,18 @@ def cmd_clean(args) -> int:
         jobs = library_jobs(source, output)
     except ValueError as err:
         raise UserError(str(err)) from None
-    return _clean_library(args, engine.spec, jobs)
+    return _clean_library(args, engine.spec, jobs, overrides)
 
 
-def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]]) -> int:
+def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: dict | None) -> int:
     """``clean DIR -o OUT`` on Dask (:func:`workbench.batch.clean_library`): a line per
     take (a progress bar above them on a terminal), the failed takes and their reasons
-    at the end; exit status 2 when some failed, 130 when interrupted."""
+    at the end; exit status 2 when some failed, 130 when interrupted. ``overrides``: what
+    the ``--mapping`` file pins (:func:`_pins`), recorded for ``--resume``."""
     from .batch import check_manifest, clean_library
-    from .io.mapping import read_mapping
 
-    # the mapping by what it pins, not by its path: an edited file cleans again
-    mapping = None if args.mapping is None else dict(sorted(read_mapping(args.mapping).items()))
+    # the mapping by what it pins (``overrides``), not by its path: an edited file cleans again
+    mapping = None if overrides is None else dict(sorted(overrides.items()))
     settings = {"engine": spec, "keep_reference": args.keep_reference, "mapping": mapping}
     if args.fill_suspects:  # only when set: a folder cleaned before the option existed still resumes
         settings["fill_suspects"] = True
@@ -746,7 +750,7 @@ def cmd_train(args) -> int:
         engine = registry.create(
             args.engine + ("," if ":" in args.engine else ":") + f"epochs={args.epochs}", pretrained=False
         )
-    engine = _pinned(engine, args.mapping)
+    engine = _pinned(engine, _pins(args))
     if engine.weights_folder is not None:
         raise UserError(
             f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
@@ -969,6 +973,14 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--data", metavar="DIR", help="data root (default: $WORKBENCH_DATA, datasets/, ../shared/data)")
         sp.add_argument("--dataset", metavar="NAME", help=dataset_help)
 
+    def mapping_opt(sp):
+        sp.add_argument(
+            "--mapping",
+            metavar="FILE",
+            help='JSON pinning canonical joints where the rules guess wrong, e.g. {"neck": "Neck1"} '
+            "(`workbench skeleton TAKE --mapping FILE` shows what it maps)",
+        )
+
     def clip_options(sp, default_split: str):
         """The catalogue clips and seeds a benchmark runs on."""
         sp.add_argument(
@@ -994,17 +1006,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("skeleton", help="a take's skeleton and the canonical humanoid joints found on it")
     sp.add_argument("take", help="a BVH/AMC take")
-    sp.add_argument("--mapping", metavar="FILE", help='JSON pinning canonical joints, e.g. {"neck": "Neck1"}')
+    mapping_opt(sp)
     sp.set_defaults(func=cmd_skeleton)
 
     sp = sub.add_parser("inspect", help="which frames of a take (no ground truth needed) look broken, and why")
     sp.add_argument("take", nargs="?", help="a BVH/AMC take")
     sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
-    sp.add_argument(
-        "--mapping",
-        metavar="FILE",
-        help="JSON pinning canonical joints for universal weights, as `workbench skeleton` takes it",
-    )
+    mapping_opt(sp)
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: TAKE.mask.json if present)")
     sp.add_argument(
         "--engine",
@@ -1066,11 +1074,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="clean the samples `workbench inspect` flags as bad data (spike, turn, jump, linear) as gaps: "
         "the engine fills them instead of trusting them",
     )
-    sp.add_argument(
-        "--mapping",
-        metavar="FILE",
-        help="JSON pinning canonical joints for universal weights, as `workbench skeleton` takes it",
-    )
+    mapping_opt(sp)
     sp.set_defaults(func=cmd_clean)
 
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
@@ -1132,11 +1136,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias, or -2, -3, ...)"
     )
     sp.add_argument("--overwrite", action="store_true", help="replace the weights --out holds already")
-    sp.add_argument(
-        "--mapping",
-        metavar="FILE",
-        help="JSON pinning canonical joints of a universal variant's training takes, as `workbench skeleton` takes it",
-    )
+    mapping_opt(sp)
     sp.add_argument(
         "--promote",
         action="store_true",

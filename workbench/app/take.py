@@ -54,21 +54,15 @@ def load_motion(source: str) -> Motion:
     from ..data import find_clip, without_reference_frame
 
     path = Path(source).expanduser()
-    if path.exists() or (path.suffix.lower() in MOTION_SUFFIXES and not _is_clip_id(source)):
-        return without_reference_frame(read_motion(path)).replace(name=path.stem)
-    return find_clip(source).load()
-
-
-def _is_clip_id(source: str) -> bool:
-    """Whether ``source`` names a catalogue clip (a take kept in two formats has ids with
-    their suffix, ``kick/11_01.amc``)."""
-    from ..data import find_clip
-
-    try:
-        find_clip(source)
-    except (KeyError, OSError):
-        return False
-    return True
+    if not path.exists():
+        try:  # a clip id; one with a file's suffix where the take is kept in two formats (kick/11_01.amc)
+            clip = find_clip(source)
+        except (KeyError, OSError):
+            if path.suffix.lower() not in MOTION_SUFFIXES:
+                raise
+        else:
+            return clip.load()
+    return without_reference_frame(read_motion(path)).replace(name=path.stem)  # (a missing file: its error)
 
 
 def sidecar_mask(source: str, motion: Motion) -> np.ndarray | None:

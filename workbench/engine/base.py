@@ -270,7 +270,8 @@ class Engine:
     state with a checksummed manifest (:meth:`save`, :meth:`load`). A subclass sets
     :attr:`info` and :attr:`Params` and implements :meth:`clean` (which the class wraps
     in :func:`_checked_clean`: the input is an observation with something observed, the
-    output a finite CleanResult); a trainable one also :meth:`fit`,
+    output a finite CleanResult of its frame count, rate and skeleton layout); a
+    trainable one also :meth:`fit`,
     :meth:`state_arrays` and :meth:`load_state_arrays`.
 
     Parameters
@@ -510,14 +511,14 @@ class Engine:
         Raises
         ------
         TypeError
-            ``observation`` is not an :class:`Observation` (every engine's ``clean`` checks,
-            :func:`_checked_clean`).
+            ``observation`` is not an :class:`Observation`, or the result is not a
+            :class:`CleanResult` (every engine's ``clean`` checks, :func:`_checked_clean`).
         NotFittedError
             A trainable engine that is neither fitted nor loaded (:meth:`require_fitted`).
         EngineError
             A skeleton layout other than the fitted one (:meth:`check_skeleton`), input
-            the engine cannot use, no sample observed, or a result that is not finite
-            (broken weights; :func:`_checked_clean`).
+            the engine cannot use, no sample observed, or a result of another frame
+            count, rate or skeleton layout, or not finite (:func:`_checked_clean`).
         NotImplementedError
             In the base class: every engine overrides it.
         """

@@ -62,8 +62,8 @@ def check_info(engine, name: str, **_) -> None:
 
 def check_shapes_and_finite(engine, name: str, motion: Motion, **_) -> None:
     for obs in (_noisy(motion), _noisy(motion, gaps=True)):
-        res = engine.clean(obs)  # a CleanResult, finite: its clean raises otherwise (Engine's checked clean)
-        assert _same_frame(res.motion, motion), f"{name}: skeleton, fps or frame count changed"
+        res = engine.clean(obs)  # a finite CleanResult of its frames, rate and layout, or its clean raised
+        assert _same_frame(res.motion, motion), f"{name}: skeleton, fps or frame count changed"  # bones too
         for key, arr in res.diagnostics.items():
             assert np.shape(arr)[0] == motion.n_frames, f"{name}: diagnostic {key!r} must have frames first"
 
