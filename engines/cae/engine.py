@@ -19,18 +19,18 @@ network completes the image of a take and IK turns it back into angles (the pape
    ``raw_positions`` (F, J, 3) is the network's output on it. With ``anchor`` the observed track is
    smoothed first (:func:`anchored_trajectory`: the image is root-relative, so the root's noise would
    enter every row), leaning :data:`SMOOTHER_PATH_SHARE` on the smoother's fill inside a gap.
-4. ``anchor`` (ours, default): the network's miss at the known entries (its bottleneck loses a few
-   cm of every pose) is smoothed row by row by the constant-velocity smoother, bridged over holes
-   (fading inside them over ``miss_fade_s``) and added; its noise is the observation's mean-square second
-   difference (:func:`workbench.engine.smoothing.measurement_variance`, ``robust=False``: angle noise moves
-   positions with heavy tails, which a median misses). Holes of L < ``hole_blend_frames`` frames
-   with the root unknown move towards the smoother's fill by 1 - L / ``hole_blend_frames`` (ours: the
-   network was trained for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference`
-   with ``anchor``, else the bridged observation) gives the twist, the leaves and the angles of joints
-   within ``short_lever_cm`` of all their children (mm of error turn a 3-cm lever by tens of degrees);
-   with ``anchor``, under angle noise, also those of joints aimed within ``angle_lever_cm`` (feet, chest, arms); the
-   other aimed joints weigh it against their aim by the noise in each. ``anchor=false,output_sigma_frames=0``: the
-   paper's output; ``keep_observed``: observed samples come back exactly (fills, does not denoise).
+4. ``anchor`` (ours, default): the network's miss at the known entries (its bottleneck loses a few cm of every
+   pose) is smoothed row by row by the constant-velocity smoother, bridged over holes (there fading towards its
+   mean over the row's known frames, over ``miss_fade_s``) and added; its noise is the observation's mean-square
+   second difference (:func:`workbench.engine.smoothing.measurement_variance`, ``robust=False``: angle noise
+   moves positions with heavy tails, which a median misses). Holes of L < ``hole_blend_frames`` frames with the
+   root unknown move towards the smoother's fill by 1 - L / ``hole_blend_frames`` (ours: the network was trained
+   for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference` with ``anchor``, else the
+   bridged observation) gives the twist, the leaves and the angles of joints within ``short_lever_cm`` of all
+   their children (mm of error turn a 3-cm lever by tens of degrees); with ``anchor``, under angle noise, also
+   those of joints aimed within ``angle_lever_cm`` (feet, chest, arms); the other aimed joints weigh it against
+   their aim by the noise in each. ``anchor=false,output_sigma_frames=0``: the paper's output;
+   ``keep_observed``: observed samples come back exactly (fills, does not denoise).
 
 Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
 them as known entries (in a first pass's body frame where the root is missing); the network's miss
@@ -129,8 +129,9 @@ class TrainingParams:
     constant-velocity smoother's (0: none; all three: the module docstring);
     ``output_sigma_frames``: the network's completion is smoothed over time by a
     Gaussian of this std in network frames before it is used (0: none; the module docstring).
-    ``miss_fade_s``: the network's miss bridged across a hole fades by
-    exp(-d / this) at d seconds from the nearest known frame (0: no fading;
+    ``miss_fade_s``: the network's miss bridged across a hole fades towards its
+    mean over the row's known frames by exp(-d / this) at d seconds from the nearest
+    known frame (0: no fading;
     :meth:`ConvAutoencoderEngine.correction`).
     ``init_weights``: a weights folder of this engine to train on from (its network and its
     image normalisation, the layout and network rate the same; fine-tuning, or a run
@@ -640,9 +641,12 @@ class ConvAutoencoderEngine(Engine):
         """(F, H) added to the network's output ``out``: its miss (image - out) in full at the
         ``exact`` entries; at the other known entries the miss smoothed row by row by the
         constant-velocity smoother (0 without ``anchor``); bridged linearly across the holes,
-        there faded by exp(-d / ``miss_fade_s``), d the time (s) to the row's nearest known
-        frame: the network's miss at a gap's edges tells less of its miss deeper inside
-        (ours; Bandai validation, 5 seeds, ``docs/engines/cae.md``, *Fading the miss*).
+        there its departure from the row's mean miss over the known entries faded by
+        exp(-d / ``miss_fade_s``), d the time (s) to the row's nearest known frame: the
+        network's miss at a gap's edges tells less of its miss deeper inside, but what it
+        misses at every known frame (a body it has not seen, whose shoulders it pulls 14
+        cm down) it misses there too (ours; ``docs/engines/cae.md``, *Fading the miss*,
+        and *Keeping the mean miss*).
 
         The smoother's measurement variance is the observation's (its noise is what the miss
         must shed; a clean take's miss passes through), from the mean square of its second
@@ -662,7 +666,9 @@ class ConvAutoencoderEngine(Engine):
         holes = ~mask
         cols = np.flatnonzero(holes.any(axis=0))  # rows with a hole: a denoised take has none
         if self.params.miss_fade_s and cols.size:
-            bridged[:, cols] *= np.exp(-gap_distance(holes[:, cols]) / (self.params.miss_fade_s * self.fps_))
+            mean = miss[:, cols].sum(axis=0) / np.maximum(kept[:, cols].sum(axis=0), 1)
+            fade = np.exp(-gap_distance(holes[:, cols]) / (self.params.miss_fade_s * self.fps_))
+            bridged[:, cols] = mean + (bridged[:, cols] - mean) * fade
         return bridged
 
     def blend_short_holes(self, out: np.ndarray, mask: np.ndarray, step: float = 1.0) -> np.ndarray:

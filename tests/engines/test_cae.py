@@ -292,26 +292,27 @@ def test_window_sampler_plays_windows_at_random_speeds_and_sizes(walk):
 
 def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
     """The correction is the network's miss at the known entries, smoothed and bridged
-    across holes: a constant miss comes back whole where known and, inside a hole, faded by
-    exp(-d / miss_fade_s) at d seconds from its nearest known frame (whole with no fading);
-    one that flips sign every frame (pure noise to the smoother) loses 90 % or more,
-    ``exact`` entries get their own miss."""
+    across holes: a slow miss comes back whole where known and, inside a hole, its departure
+    from the row's mean miss over the known frames faded by exp(-d / miss_fade_s) at d
+    seconds from its nearest known frame (whole with no fading), so a constant miss (a body
+    the network pulls out of shape) stays whole; one that flips sign every frame (pure noise
+    to the smoother) loses 90 % or more, ``exact`` entries get their own miss."""
     engine = trained["cae"]
     F, H = 120, 4
     mask = np.ones((F, H), bool)
-    mask[40:70, 1] = False
+    mask[40:70, [1, 3]] = False
     out = np.zeros((F, H))
-    offset = np.array([1.0, -2.0, 0.5, 3.0])
-    corrected = engine.correction(out + offset, mask, out, np.zeros_like(mask))
+    ramp = np.linspace(-1.0, 2.0, F)  # a miss that moves at constant speed: the smoother keeps it
+    miss = np.stack([np.full(F, 1.0), ramp, np.full(F, 0.5), np.full(F, 3.0)], axis=1)
+    corrected = engine.correction(out + miss, mask, out, np.zeros_like(mask))
     d = np.zeros(F)
     d[40:70] = np.minimum(np.arange(1, 31), np.arange(30, 0, -1)) / engine.fps_  # seconds to the hole's edges
     assert engine.params.miss_fade_s > 0 and d.max() == 15 / 120
-    np.testing.assert_allclose(corrected[:, 1], offset[1] * np.exp(-d / engine.params.miss_fade_s), atol=1e-12)
-    np.testing.assert_allclose(corrected[:, [0, 2, 3]], np.broadcast_to(offset[[0, 2, 3]], (F, 3)), atol=1e-12)
+    mean = ramp[mask[:, 1]].mean()
+    np.testing.assert_allclose(corrected[:, 1], mean + (ramp - mean) * np.exp(-d / engine.params.miss_fade_s), atol=1e-7)
+    np.testing.assert_allclose(corrected[:, [0, 2, 3]], miss[:, [0, 2, 3]], atol=1e-12)
     unfaded = registry.create("cae:miss_fade_s=0")
-    np.testing.assert_allclose(
-        unfaded.correction(out + offset, mask, out, np.zeros_like(mask)), np.broadcast_to(offset, (F, H)), atol=1e-12
-    )
+    np.testing.assert_allclose(unfaded.correction(out + miss, mask, out, np.zeros_like(mask)), miss, atol=1e-7)
     flips = np.where(np.arange(F) % 2, 1.0, -1.0)[:, None] * np.ones(H)
     exact = np.zeros_like(mask)
     exact[10, 2] = True
