@@ -63,17 +63,39 @@ def test_resume_skips_the_takes_done_and_refuses_another_engine(library, tmp_pat
     assert main(argv) == 0
     capsys.readouterr()
     before = _outputs(out)
+    earlier = (library / "jump.bvh").stat().st_mtime - 60
+    with (library / "jump.bvh").open("a") as f:  # the jump was edited since, and given an old time (cp -p)
+        f.write("\n")
+    os.utime(library / "jump.bvh", (earlier, earlier))
     later = time.time() + 5
-    os.utime(library / "jump.bvh", (later, later))  # the jump was edited since
+    os.utime(library / "walk.bvh", (later, later))  # the walk touched, not changed
     stale = out / ".walk.bvh.k3j2.tmp"  # left by a worker killed mid-write
     stale.write_text("half a take")
     assert main([*argv, "--resume"]) == 0
     captured = capsys.readouterr()
-    assert captured.out.count("kept ") == 2 and captured.out.count("wrote ") == 1 and "jump.bvh" in captured.out
+    assert (
+        captured.out.count("kept ") == 2
+        and captured.out.count("wrote ") == 1
+        and "wrote " + str(out / "jump.bvh") in captured.out
+    )
     assert "2 takes were up to date" in captured.err and _outputs(out) == before
     assert stale.exists(), "a take kept is not written again"
+    (out / "again" / "walk.bvh").write_bytes(b"edited by hand")  # an output that is not what the clean wrote
+    (out / "walk.bvh").unlink()
+    (out / "walk.bvh").mkdir()  # a folder where an output goes
+    assert main([*argv, "--resume"]) == 2
+    captured = capsys.readouterr()
+    assert (
+        "wrote " + str(out / "again" / "walk.bvh") in captured.out and "kept " + str(out / "jump.bvh") in captured.out
+    )
+    assert (
+        f"{library / 'walk.bvh'}" in captured.err
+        and "1 of 3 takes failed (the others were written or kept)" in captured.err
+    )
+    (out / "walk.bvh").rmdir()
     assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--workers", "1"]) == 0
-    assert not stale.exists(), "the next write of a take removes what a killed one left"
+    assert not stale.exists(), "a batch removes what a killed one left"
+    assert _outputs(out) == before
     assert main(["clean", str(library), "-o", str(out), "--engine", "gaussian", "--resume"]) == 2
     assert "--resume would mix the two" in capsys.readouterr().err
     mapping = tmp_path / "map.json"  # a mapping file is known by what it pins, not by its path
@@ -96,6 +118,39 @@ def test_an_existing_cluster_runs_the_same_code_path(library, tmp_path, capsys):
         assert main([*argv, "--scheduler", cluster.scheduler_address]) == 0
     assert main(["clean", str(library), "-o", str(tmp_path / "local"), "--engine", "kalman", "--workers", "1"]) == 0
     assert _outputs(tmp_path / "out") == _outputs(tmp_path / "local")
+
+
+def test_paths_reach_the_workers_absolute_and_a_take_that_cannot_be_read_fails_alone(
+    library, tmp_path, monkeypatch, capsys
+):
+    """A worker of an existing cluster runs in its own folder: relative paths would read
+    and write there. A dangling link or a pipe among the takes fails as a take does."""
+    from distributed import LocalCluster
+
+    log = tmp_path / "tasks.txt"  # (the task runs on a copy of this function)
+    task = batch.clean_task
+
+    def recorded(spec, mapping, source, output, *options):
+        with open(log, "a") as f:
+            f.write(f"{source}\t{output}\n")
+        return task(spec, mapping, source, output, *options)
+
+    monkeypatch.setattr(batch, "clean_task", recorded)
+    (library / "gone.bvh").symlink_to(tmp_path / "no-such.bvh")
+    os.mkfifo(library / "pipe.bvh")
+    monkeypatch.chdir(tmp_path)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        argv = ["clean", "takes", "-o", "out", "--engine", "kalman", "--scheduler", cluster.scheduler_address]
+        assert main(argv) == 2
+    seen = [line.split("\t") for line in log.read_text().splitlines()]
+    assert len(seen) == 5 and all(os.path.isabs(s) and os.path.isabs(o) for s, o in seen)
+    err = capsys.readouterr().err
+    assert (
+        "2 of 5 takes failed" in err
+        and "takes/gone.bvh: cannot read the file" in err
+        and "takes/pipe.bvh: not a file" in err
+    )
+    assert sorted(_outputs(tmp_path / "out")) == ["again/walk.bvh", "jump.bvh", "walk.bvh"]
 
 
 def test_an_interrupted_batch_says_what_is_done_and_how_to_go_on(library, tmp_path, monkeypatch, capsys):
@@ -165,7 +220,7 @@ def test_a_folder_cleaned_with_its_suspects_filled_says_so_and_resumes_only_so(l
     out = tmp_path / "out"
     assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--fill-suspects", "--workers", "1"]) == 0
     assert capsys.readouterr().err.count("flagged as bad data") == 3  # a note per take
-    assert json.loads((out / batch.MANIFEST).read_text())["fill_suspects"] is True
+    assert json.loads((out / batch.MANIFEST).read_text().splitlines()[0])["settings"]["fill_suspects"] is True
     assert main(["clean", str(library), "-o", str(out), "--engine", "kalman", "--resume"]) == 2
     assert "--resume would mix the two" in capsys.readouterr().err
 
@@ -208,9 +263,34 @@ def test_a_folder_clean_refuses_two_takes_for_one_file_and_files_no_clean_wrote(
     raw = (library / "jump.bvh").read_bytes()
     (inside / "walk.bvh").write_bytes(raw)
     assert main(["clean", str(library), "-o", str(inside), "--engine", "lerp"]) == 2
-    assert "already holds" in capsys.readouterr().err and (inside / "walk.bvh").read_bytes() == raw
+    assert "holds " + str(inside / "walk.bvh") + ", which would not be cleaned" in capsys.readouterr().err
+    assert (inside / "walk.bvh").read_bytes() == raw
+    assert main(["clean", str(library), "-o", str(tmp_path), "--engine", "lerp"]) == 2  # the takes inside the output
+    assert (
+        f"{library} lies inside the output folder {tmp_path}: name an output folder outside it"
+        in capsys.readouterr().err
+    )
+    assert main(["clean", str(tmp_path / "no-such"), "-o", str(tmp_path / "out"), "--engine", "lerp"]) == 2
+    assert f"{tmp_path / 'no-such'}: no such file or folder" in capsys.readouterr().err
     (inside / "walk.bvh").unlink()  # what a clean wrote there before is its own to write again
-    batch.check_manifest(inside, {"engine": "lerp"}, resume=False)
+    batch.FolderRecord(inside, {"engine": "lerp"}, resume=False)
     (inside / "walk.bvh").write_bytes(raw)
     jobs = batch.library_jobs(library, inside)
     assert sorted(p.relative_to(library).as_posix() for p, _ in jobs) == ["again/walk.bvh", "jump.bvh", "walk.bvh"]
+
+
+def test_a_joint_flagged_in_every_frame_is_kept_as_observed_with_a_note(embedded_root, tmp_path):
+    """A take whose root seems to move faster than a body can in every frame (its unit
+    or frame time wrong) is not bad data everywhere: --fill-suspects would erase its path."""
+    from workbench.data import find_clip
+    from workbench.io import read_bvh, write_bvh
+    from workbench.registry import create
+
+    walk = find_clip("cmu/walk/35_31", embedded_root).load().slice(1, 200)
+    channels = walk.channels.copy()
+    channels[:, :3] *= 40.0  # the root's path forty times too long
+    take = tmp_path / "fast.bvh"
+    write_bvh(take, walk.with_channels(channels))
+    report = batch.clean_file(create("identity"), take, tmp_path / "out.bvh", fill_suspects=True)
+    assert any("flagged as bad data in every frame it was observed, so kept as observed" in n for n in report.notes)
+    assert read_bvh(tmp_path / "out.bvh").channels[:, :3] == pytest.approx(channels[:, :3], abs=1e-3)

@@ -62,7 +62,7 @@ def test_clean_treats_nan_as_missing(tmp_path, walk):
 @pytest.mark.parametrize(
     "args,needle",
     [
-        (["clean", "missing.bvh", "-o", "{tmp}/o.bvh", "--engine", "identity"], "cannot read"),
+        (["clean", "missing.bvh", "-o", "{tmp}/o.bvh", "--engine", "identity"], "missing.bvh: no such file or folder"),
         (["clean", "{bad}", "-o", "{tmp}/o.bvh", "--engine", "identity"], "truncated"),
         (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "nope"], "unknown engine"),
         (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),

@@ -177,5 +177,5 @@ def test_a_missing_input_with_an_existing_output_is_one_clear_line(tmp_path, cap
     missing = tmp_path / "missing.bvh"
     assert main(["clean", str(missing), "-o", str(tmp_path / "out.bvh"), "--engine", "lerp"]) == 2
     err = capsys.readouterr().err
-    assert f"{missing}: cannot read the file" in err and "Traceback" not in err
+    assert f"{missing}: no such file or folder" in err and "Traceback" not in err
     assert (tmp_path / "out.bvh").read_text() == "an earlier output\n"

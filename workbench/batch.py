@@ -16,26 +16,32 @@ No take is split into chunks: every engine's result at a frame may depend on fra
 any distance away (the Kalman smoother's backward pass, mssa's robust fit of the whole
 take, gap bridging, each engine's per-take noise estimate), so a cut would change it.
 
-``resume``: a take whose output exists and is newer than the take (and its mask
-sidecar) is skipped, when the output folder was cleaned with the same engine and options
-(recorded in :data:`MANIFEST`).
+The output folder's :data:`MANIFEST` (:class:`FolderRecord`) holds the engine and options
+it is cleaned with, then a line per take written: its output and what it was cleaned
+from. ``resume`` skips a take whose output is the file that line records and whose take
+and mask sidecar have the bytes they had then (SHA-256): an edit, a take copied over
+with its old time, a mask moved away or an output replaced cleans it again.
+
+Paths go to the workers absolute: a worker of an existing cluster runs in a folder of its
+own.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import signal
 import time
 from collections.abc import Callable
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from .errors import ClusterError
 
-#: the file in an output folder that records how its takes were cleaned
+#: the file in an output folder that records how its takes were cleaned (:class:`FolderRecord`)
 MANIFEST = ".workbench-clean.json"
 
 
@@ -55,6 +61,8 @@ class TakeReport:
     notes: tuple[str, ...] = ()
     error: str | None = None
     skipped: bool = False
+    #: what the take was cleaned from (:func:`take_stamp`), where it was written
+    stamp: dict | None = None
 
     def __str__(self) -> str:
         if self.error is not None:  # (a file error names the take already)
@@ -136,6 +144,18 @@ def clean_file(
         from .data.inspection import FILL_REASONS, suspects_missing
 
         before, observation = observation, suspects_missing(observation)
+        whole = before.observed.any(axis=0) & ~observation.observed.any(axis=0)
+        if whole.any():  # a joint bad in every frame is not bad data but a wrong unit or frame time
+            from .core.motion import Observation
+
+            kept = observation.observed | (before.observed & whole)
+            observation = Observation(before.motion, kept, observation.capture_step)
+            names = [observation.skeleton.names[j] for j in np.flatnonzero(whole)]
+            notes.append(
+                f"{', '.join(names)}: flagged as bad data in every frame it was observed, so kept as observed; if "
+                f"the take's unit ({observation.skeleton.unit_cm:g} cm, from its rest pose's height) or frame time "
+                "is wrong, the whole take looks broken: mend the file"
+            )
         suspects = before.observed & ~observation.observed
         notes.append(
             f"{int(suspects.sum())} samples in {int(suspects.any(axis=1).sum())} frames flagged as bad data "
@@ -225,26 +245,127 @@ def clean_task(
     try:
         with one_thread():
             engine = worker_engine(spec, mapping)
-            return clean_file(engine, Path(source), Path(output), None, keep_reference, fill_suspects)
+            report = clean_file(engine, Path(source), Path(output), None, keep_reference, fill_suspects)
+            return replace(report, stamp=take_stamp(Path(source)))  # (read, so a file: no pipe to block on)
     except Exception as err:  # reported with the others at the end, never raised on the worker
         return TakeReport(Path(source), Path(output), error=describe(err))
 
 
 # -- the batch --------------------------------------------------------------------------
-def _up_to_date(source: Path, output: Path) -> bool:
-    if not output.exists():
-        return False
+def take_stamp(source: Path) -> dict:
+    """What a take is cleaned from: the SHA-256 of its bytes and of its mask sidecar's
+    (None where it has none). Raises OSError where the take cannot be read."""
+    from .engine.weights import sha256_file
     from .io.mask import sidecar_path
 
-    newest_input = max(p.stat().st_mtime for p in (source, sidecar_path(source)) if p.exists())
-    return output.stat().st_mtime >= newest_input
+    if not source.is_file():
+        raise OSError(f"{source} is not a file")
+    sidecar = sidecar_path(source)
+    return {"take": sha256_file(source), "mask": sha256_file(sidecar) if sidecar.is_file() else None}
+
+
+class FolderRecord:
+    """An output folder's :data:`MANIFEST`: a JSON line of the settings it is cleaned with
+    (``{"settings": ...}``), then one per take written (``{"output": its path below the
+    folder, "stamp": take_stamp, "size": bytes, "mtime_ns": ...}``; a later line of an
+    output replaces an earlier one). A line cut short by a killed process is left out.
+
+    Opened with ``resume``, a folder cleaned with other settings is refused (ValueError
+    naming both) and its lines are kept; otherwise the record starts afresh with the
+    settings alone (atomically), so no earlier take counts as done. A record written
+    before the takes had lines (one JSON object of the settings) resumes nothing."""
+
+    def __init__(self, out_dir: Path, settings: dict, resume: bool) -> None:
+        from .io.atomic import atomic_write_text
+
+        self.out_dir, self.settings, self.resume = Path(out_dir), settings, resume
+        self.path = self.out_dir / MANIFEST
+        self.done: dict[str, dict] = {}
+        if resume and self.path.exists():
+            before, self.done = self._read()
+            if before != settings:
+                raise ValueError(
+                    f"{out_dir} was cleaned with {_settings_text(before)}, not {_settings_text(settings)}: --resume "
+                    "would mix the two; leave out --resume to clean every take again, or name another folder"
+                )
+        else:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(self.path, json.dumps({"settings": settings}) + "\n")
+
+    def _read(self) -> tuple[dict, dict[str, dict]]:
+        unreadable = ValueError(
+            f"{self.path} cannot be read, so what {self.out_dir} was cleaned with is not known: --resume could mix "
+            "two cleanings; leave out --resume to clean every take again, or name another folder"
+        )
+        try:
+            text = self.path.read_text(encoding="utf-8")
+        except (OSError, ValueError):
+            raise unreadable from None
+        try:
+            whole = json.loads(text)
+        except ValueError:
+            whole = None
+        if isinstance(whole, dict) and "settings" not in whole:  # the record of a clean before takes had lines
+            return whole, {}
+        lines = text.splitlines()
+        done: dict[str, dict] = {}
+        try:
+            settings = json.loads(lines[0])["settings"]
+            for i, line in enumerate(lines[1:], 2):
+                try:
+                    entry = json.loads(line)
+                except ValueError:
+                    if i == len(lines):  # the last line, cut short by a killed process
+                        break
+                    raise
+                done[entry["output"]] = entry
+        except (ValueError, KeyError, TypeError, IndexError):
+            raise unreadable from None
+        return settings, done
+
+    def _key(self, output: Path) -> str:
+        return Path(output).relative_to(self.out_dir).as_posix()
+
+    def up_to_date(self, source: Path, output: Path) -> bool:
+        """Whether ``output`` is the file this record says was cleaned from ``source`` as it is now."""
+        entry = self.done.get(self._key(output))
+        if entry is None or not Path(output).is_file():
+            return False
+        stat = Path(output).stat()
+        if (stat.st_size, stat.st_mtime_ns) != (entry.get("size"), entry.get("mtime_ns")):
+            return False
+        try:
+            return take_stamp(Path(source)) == entry.get("stamp")
+        except OSError:
+            return False
+
+    def add(self, report: TakeReport) -> None:
+        """Record a take ``report`` says was written (appended, flushed to disk)."""
+        stat = report.output.stat()
+        entry = {"output": self._key(report.output), "stamp": report.stamp}
+        entry |= {"size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
+        with self.path.open("a", encoding="utf-8", newline="\n") as f:
+            f.write(json.dumps(entry) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        self.done[entry["output"]] = entry
+
+
+def _settings_text(settings: dict) -> str:
+    """A record's settings as the options that give them."""
+    parts = [f"--engine {settings.get('engine')!r}"]
+    parts += [f"--{name.replace('_', '-')}" for name in ("keep_reference", "fill_suspects") if settings.get(name)]
+    if settings.get("mapping"):
+        parts.append(f"--mapping pinning {', '.join(f'{k}={v}' for k, v in settings['mapping'].items())}")
+    return " ".join(parts)
 
 
 def library_jobs(source: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     """The (take, cleaned take) pairs of ``clean SOURCE -o OUT_DIR``: every .bvh and .amc
     file below ``source``, outside ``out_dir`` (which may lie inside it), to the same place
     below ``out_dir`` as .bvh. ValueError, naming the files, when ``source`` holds no take,
-    when two takes would be cleaned to one file (``a.bvh`` and ``a.BVH``, ``a.bvh`` and
+    when it lies inside ``out_dir``, when ``out_dir`` lies inside it and holds takes no
+    clean wrote, when two takes would be cleaned to one file (``a.bvh`` and ``a.BVH``, ``a.bvh`` and
     ``a.amc``, or ``A.bvh`` and ``a.bvh``, one file on a disk that ignores case), or when
     ``out_dir`` holds files where cleaned takes go but no clean has written there (no
     :data:`MANIFEST`): they are someone's takes, which it would overwrite."""
@@ -252,9 +373,17 @@ def library_jobs(source: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     from .io import MOTION_SUFFIXES
 
     inside = out_dir.resolve()
-    takes = [
-        p for p in files_under(source) if p.suffix.lower() in MOTION_SUFFIXES and not p.resolve().is_relative_to(inside)
-    ]
+    if source.resolve().is_relative_to(inside):
+        raise ValueError(f"{source} lies inside the output folder {out_dir}: name an output folder outside it")
+    found = [p for p in files_under(source) if p.suffix.lower() in MOTION_SUFFIXES]
+    takes = [p for p in found if not p.resolve().is_relative_to(inside)]
+    if len(takes) < len(found) and not (out_dir / MANIFEST).exists():  # takes, not what a clean wrote there
+        held = [p for p in found if p not in takes]
+        raise ValueError(
+            f"the output folder {out_dir} lies inside {source} and holds {held[0]}"
+            f"{f' and {len(held) - 1} more takes' if len(held) > 1 else ''}, which would not be cleaned: name an "
+            "output folder outside it"
+        )
     if not takes:
         raise ValueError(f"{source} holds no .bvh or .amc file")
     jobs = [(p, out_dir / p.relative_to(source).with_suffix(".bvh")) for p in takes]
@@ -273,28 +402,6 @@ def library_jobs(source: Path, out_dir: Path) -> list[tuple[Path, Path]]:
     return jobs
 
 
-def check_manifest(out_dir: Path, settings: dict, resume: bool) -> None:
-    """With ``resume``, refuse an output folder cleaned with other ``settings`` (ValueError
-    naming both); then record ``settings`` as the folder's (atomically)."""
-    from .io.atomic import atomic_write_text
-
-    path = out_dir / MANIFEST
-    if resume and path.exists():
-        try:
-            before = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            raise ValueError(
-                f"{path} cannot be read, so what {out_dir} was cleaned with is not known: --resume could mix two "
-                "cleanings; leave out --resume to clean every take again, or name another folder"
-            ) from None
-        if before != settings:
-            raise ValueError(
-                f"{out_dir} was cleaned with {before}, not {settings}: --resume would mix the two; "
-                "leave out --resume to clean every take again, or name another folder"
-            )
-    atomic_write_text(path, json.dumps(settings, indent=1) + "\n")
-
-
 def clean_library(
     spec: str,
     jobs: list[tuple[Path, Path]],
@@ -303,34 +410,58 @@ def clean_library(
     mapping: str | None = None,
     workers: int | None = None,
     scheduler: str | None = None,
-    resume: bool = False,
+    record: FolderRecord | None = None,
     on_report: Callable[[TakeReport], None] | None = None,
 ) -> list[TakeReport]:
     """Clean every (source, output) of ``jobs`` with the engine ``spec`` on Dask
     distributed: a local cluster of ``workers`` processes (default: the machine's
-    cores), or the cluster at ``scheduler``. ``on_report`` sees each take's report as it
-    arrives (skipped ones first); ``keep_reference`` and ``fill_suspects``: as
-    :func:`clean_file`'s. Returns the reports, in ``jobs``' order. Interrupting it
-    (KeyboardInterrupt) cancels the takes not done and re-raises."""
+    cores), or the cluster at ``scheduler``. ``record``: the output folder's, where each
+    take written is recorded; opened with ``resume``, the takes it holds as done are
+    skipped. ``on_report`` sees each take's report as it arrives (skipped ones first);
+    ``keep_reference`` and ``fill_suspects``: as :func:`clean_file`'s. Returns the
+    reports, in ``jobs``' order. Interrupting it (KeyboardInterrupt) cancels the takes
+    not done and re-raises."""
     reports: dict[Path, TakeReport] = {}
+    given = {os.path.abspath(source): (source, output) for source, output in jobs}  # as the user named them
 
     def arrived(report: TakeReport) -> None:
-        reports[report.source] = report
+        source, output = given[os.path.abspath(report.source)]
+
+        def as_given(text: str) -> str:  # the files as the user named them
+            return text.replace(str(report.source), str(source)).replace(str(report.output), str(output))
+
+        error = None if report.error is None else as_given(report.error)
+        notes = tuple(as_given(note) for note in report.notes)
+        report = replace(report, source=source, output=output, error=error, notes=notes)
+        if record is not None and report.error is None and not report.skipped:
+            record.add(report)
+        reports[source] = report
         if on_report is not None:
             on_report(report)
 
     todo = []
     for source, output in jobs:
-        if resume and _up_to_date(source, output):
+        if record is not None and record.resume and record.up_to_date(source, output):
             arrived(TakeReport(source, output, skipped=True))
         else:
+            _remove_stale_temporaries(output)  # a batch killed mid-write left it
             todo.append((source, output))
     if todo:
         from distributed import as_completed
 
+        mapping = None if mapping is None else os.path.abspath(mapping)
         with dask_client(workers, scheduler, len(todo)) as client:
             futures = [
-                client.submit(clean_task, spec, mapping, str(s), str(o), keep_reference, fill_suspects, pure=False)
+                client.submit(
+                    clean_task,
+                    spec,
+                    mapping,
+                    os.path.abspath(s),
+                    os.path.abspath(o),
+                    keep_reference,
+                    fill_suspects,
+                    pure=False,
+                )
                 for s, o in todo
             ]
             try:
@@ -340,6 +471,24 @@ def clean_library(
                 client.cancel(futures)
                 raise
     return [reports[source] for source, _ in jobs]
+
+
+@contextmanager
+def _ctrl_c_left_to_this_process():
+    """Processes started inside ignore SIGINT. Ctrl-C reaches every process of the
+    terminal's group: the local cluster's workers then leave it to the client, which
+    closes them (each printed its tracebacks). The price: a Ctrl-C while they start (a
+    second or two) is lost. From the main thread only; elsewhere nothing changes."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
 
 
 @contextmanager
@@ -363,10 +512,9 @@ def dask_client(workers: int | None, scheduler: str | None, n_tasks: int | None 
             yield client
         return
     n = max(1, min(workers or os.cpu_count() or 1, n_tasks or 1 << 30))
-    with (
-        LocalCluster(
+    with _ctrl_c_left_to_this_process():
+        cluster = LocalCluster(
             n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
-        ) as cluster,
-        Client(cluster) as client,
-    ):
+        )
+    with cluster, Client(cluster) as client:
         yield client

@@ -13,6 +13,7 @@ import json
 import math
 import os
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -153,20 +154,22 @@ def _read(path: str):
 
 
 def cmd_skeleton(args) -> int:
-    from .core.humanoid import map_humanoid
+    from .core.humanoid import HumanoidError, map_humanoid
     from .core.upright import up_turn
     from .engine.view import body_skeleton
 
     motion = _read(args.take)
     s = motion.skeleton
     overrides = _pins(args)
-    # refused as the engines refuse it, on the body view (no reference node above the body
-    # root): its one line, before anything is printed; described on the whole skeleton
-    map_humanoid(body_skeleton(s), overrides)
-    mapping = map_humanoid(s, overrides)
     print(
         f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
     )
+    try:  # refused as the engines refuse it, on the body view (no reference node above the body root)
+        map_humanoid(body_skeleton(s), overrides)
+        mapping = map_humanoid(s, overrides)
+    except HumanoidError:  # what was found, then why it is refused
+        print(map_humanoid(s, overrides, checked=False).describe())
+        raise
     print(mapping.describe())
     turn = up_turn(motion, overrides)
     up = "+Y" if turn is None else "".join(f"{'+' if v > 0 else '-'}{a}" for a, v in zip("XYZ", turn[1]) if v)
@@ -393,6 +396,8 @@ def cmd_clean(args) -> int:
     from .io.mask import sidecar_path
 
     source = Path(args.input)
+    if not source.exists():
+        raise UserError(f"{source}: no such file or folder")
     if args.in_place:
         if args.output:
             raise UserError("--in-place writes the cleaned take over its input: leave out -o")
@@ -462,7 +467,7 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
     take (a progress bar above them on a terminal), the failed takes and their reasons
     at the end; exit status 2 when some failed, 130 when interrupted. ``overrides``: what
     the ``--mapping`` file pins (:func:`_pins`), recorded for ``--resume``."""
-    from .batch import check_manifest, clean_library
+    from .batch import FolderRecord, clean_library
 
     # the mapping by what it pins (``overrides``), not by its path: an edited file cleans again
     mapping = None if overrides is None else dict(sorted(overrides.items()))
@@ -470,11 +475,12 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
     if args.fill_suspects:  # only when set: a folder cleaned before the option existed still resumes
         settings["fill_suspects"] = True
     try:
-        check_manifest(Path(args.output), settings, args.resume)
+        record = FolderRecord(Path(args.output), settings, args.resume)
     except ValueError as err:
         raise UserError(str(err)) from None
-    bar = _progress_bar(len(jobs), sum(p.stat().st_size for p, _ in jobs))
+    bar = _progress_bar(len(jobs), sum(_size(p) for p, _ in jobs))
     done: list = []
+    started = time.time()
 
     def on_report(report) -> None:
         done.append(report)
@@ -486,7 +492,7 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
             sys.stderr if report.error else sys.stdout,
         )
         if bar is not None:
-            bar.update(report.source.stat().st_size if report.source.exists() else 0)
+            bar.update(_size(report.source))
             frames = sum(r.frames for r in done)
             bar.set_postfix_str(
                 f"{len(done)}/{len(jobs)} takes, {frames / max(bar.format_dict['elapsed'], 1e-9):,.0f} frames/s"
@@ -501,16 +507,19 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
             args.mapping,
             args.workers,
             args.scheduler,
-            args.resume,
+            record,
             on_report,
         )
     except KeyboardInterrupt:
         if bar is not None:
             bar.close()
-        written = sum(1 for r in done if r.error is None and not r.skipped)
+        reported = {r.source for r in done}  # and the takes that were finishing as the cluster closed:
+        finishing = sum(1 for source, output in jobs if source not in reported and _size(output, since=started))
+        written = sum(1 for r in done if r.error is None and not r.skipped) + finishing
+        left = len(jobs) - len(done) - finishing
         print(
-            f"workbench clean: interrupted: {written} takes written, {len(jobs) - len(done)} not done (no partial "
-            "file is left); the same command with --resume goes on from there",
+            f"workbench clean: interrupted: {written} takes written, {left} not done (no partial file is left); the "
+            "same command with --resume goes on from there",
             file=sys.stderr,
         )
         return 130
@@ -521,12 +530,26 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
     if skipped:
         print(f"note: {skipped} takes were up to date (--resume) and kept", file=sys.stderr)
     if failed:
-        others = "the others were written" if len(failed) < len(jobs) else "none was written"
+        others = (
+            "none was written"
+            if len(failed) == len(jobs)
+            else "the others were written" + (" or kept" if skipped else "")
+        )
         print(f"workbench clean: {len(failed)} of {len(jobs)} takes failed ({others}):", file=sys.stderr)
         for report in failed:
             print(f"  {report}", file=sys.stderr)
         return 2
     return 0
+
+
+def _size(path: Path, since: float | None = None) -> int:
+    """A file's size in bytes; 0 where it is not there (a dangling link, a take deleted)
+    or, with ``since``, was last written before that time (s since the epoch)."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return 0
+    return 0 if since is not None and stat.st_mtime < since else stat.st_size
 
 
 def _progress_bar(n_takes: int, total_bytes: int):
@@ -1221,6 +1244,9 @@ def main(argv: list[str] | None = None) -> int:
     except _user_errors() as err:
         print(f"workbench {args.command}: error: {_message(err)}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # (a folder's clean says more itself: what was written, how to go on)
+        print(f"workbench {args.command}: interrupted; no partial file is left", file=sys.stderr)
+        return 130
     except BrokenPipeError:  # the reader stopped early (`workbench engines | head`): not an error of ours
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit's flush stays quiet
         return 0

@@ -260,3 +260,23 @@ def test_a_long_spine_bends_about_its_mapped_joint():
     assert np.allclose(solved, truth, atol=1e-9)
     others = np.arange(HUMANIK.n_joints) != spine
     assert np.allclose(angles[:, others], 0.0, atol=1e-7)
+
+
+def test_a_head_no_name_gives_is_named_as_the_one_to_map_and_skeleton_shows_the_rest(tmp_path, capsys):
+    """The chest and arms are found from the head and the hands: with the head's name in
+    another language they are missing too, and the message names the head to map."""
+    from workbench.cli import main
+
+    take = tmp_path / "kopf.bvh"
+    text = find_clip("cmu/walk/02_01").path.read_text()
+    take.write_text(text.replace("JOINT Head\n", "JOINT Kopf\n"))
+    assert main(["skeleton", str(take)]) == 2
+    captured = capsys.readouterr()
+    assert "left_hand        LeftHand" in captured.out and "head             -  (essential)" in captured.out
+    assert "(chest, left_upper_arm, left_forearm, right_upper_arm, right_forearm are found from head, which no " in (
+        captured.err
+    )
+    assert '{"head": "JointName"}' in captured.err
+    (tmp_path / "map.json").write_text('{"head": "Kopf"}')
+    assert main(["skeleton", str(take), "--mapping", str(tmp_path / "map.json")]) == 0
+    assert "chest            Spine1" in capsys.readouterr().out

@@ -72,6 +72,8 @@ ESSENTIAL_JOINTS: tuple[str, ...] = ("hips", "chest", "head") + tuple(
     f"{s}_{part}" for s in _SIDES for part in ("upper_arm", "forearm", "hand", "thigh", "shin", "foot")
 )
 
+#: the canonical joints found by their names; the others follow from where these are
+_NAMED_JOINTS = ("head",) + tuple(f"{s}_{part}" for s in _SIDES for part in ("hand", "foot"))
 #: name prefixes of exporters, stripped before reading a name (``mixamorig:Hips``, ``Bip01 L Thigh``)
 _PREFIX = re.compile(r"^(?:.*:|mixamorig\d*_|bip0?1[ _]|m_avg_|joint_|jnt_|def[-_])", re.IGNORECASE)
 _FINGER = re.compile(r"index|thumb|middle|mid\d|ring|pinky|little|finger|carpal", re.IGNORECASE)
@@ -275,10 +277,13 @@ def unknown_canonical(names) -> str | None:
     return f"{', '.join(unknown)}: not {what}; they are {', '.join(CANONICAL_JOINTS)}"
 
 
-def map_humanoid(skeleton: Skeleton, overrides: Mapping[str, str | None] | None = None) -> HumanoidMapping:
+def map_humanoid(
+    skeleton: Skeleton, overrides: Mapping[str, str | None] | None = None, *, checked: bool = True
+) -> HumanoidMapping:
     """The canonical joints of ``skeleton`` (rules in the module docstring); ``overrides``
     maps canonical joint names to the take's joint names (None: absent), set before the
-    rules run so that what follows from them (the chest from the hands) follows.
+    rules run so that what follows from them (the chest from the hands) follows. With
+    ``checked`` False, what the rules found, however incomplete (to show it).
 
     Raises
     ------
@@ -350,6 +355,8 @@ def map_humanoid(skeleton: Skeleton, overrides: Mapping[str, str | None] | None 
         put(f"{side}_toes", toes)
 
     joints = tuple(found[c] for c in CANONICAL_JOINTS)
+    if not checked:
+        return HumanoidMapping(skeleton, joints, frozenset(overrides))
     try:
         _check(skeleton, tree, joints)
     except HumanoidError as err:
@@ -367,10 +374,20 @@ def _check(skeleton: Skeleton, tree: _Tree, joints: tuple[int, ...]) -> None:
     at = dict(zip(CANONICAL_JOINTS, joints))
     missing = [c for c in ESSENTIAL_JOINTS if at[c] < 0]
     if missing:
+        # the head, hands and feet are found by their names, the rest from them: name the first
+        named = [c for c in missing if c in _NAMED_JOINTS]
+        followers = [c for c in missing if c not in named]
+        because = (
+            f" ({', '.join(followers)} {'is' if len(followers) == 1 else 'are'} found from {', '.join(named)}, "
+            "which no joint's name says)"
+            if named and followers
+            else ""
+        )
         raise HumanoidError(
             f"the skeleton ({skeleton.n_joints} joints, root {names[0]!r}) has no joint for "
-            f"{', '.join(missing)}, which a skeleton-agnostic engine needs; name them in a mapping file "
-            f'(JSON, {{"{missing[0]}": "JointName"}}) passed with --mapping (clean, inspect, train; skeleton '
+            f"{', '.join(missing)}, which a skeleton-agnostic engine needs{because}; name "
+            f"{'them' if len(missing) > 1 else 'it'} in a mapping file (JSON, "
+            f'{{"{(named or missing)[0]}": "JointName"}}) passed with --mapping (clean, inspect, train; skeleton '
             "shows what it maps), or clean with a classical engine"
         )
     used: dict[int, str] = {}
