@@ -309,7 +309,9 @@ def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
     d[40:70] = np.minimum(np.arange(1, 31), np.arange(30, 0, -1)) / engine.fps_  # seconds to the hole's edges
     assert engine.params.miss_fade_s > 0 and d.max() == 15 / 120
     mean = ramp[mask[:, 1]].mean()
-    np.testing.assert_allclose(corrected[:, 1], mean + (ramp - mean) * np.exp(-d / engine.params.miss_fade_s), atol=1e-7)
+    np.testing.assert_allclose(
+        corrected[:, 1], mean + (ramp - mean) * np.exp(-d / engine.params.miss_fade_s), atol=1e-7
+    )
     np.testing.assert_allclose(corrected[:, [0, 2, 3]], miss[:, [0, 2, 3]], atol=1e-12)
     unfaded = registry.create("cae:miss_fade_s=0")
     np.testing.assert_allclose(unfaded.correction(out + miss, mask, out, np.zeros_like(mask)), miss, atol=1e-7)

@@ -489,3 +489,50 @@ def test_more_frame_lines_than_frames_says_which_line_to_fix(tmp_path):
     path.write_text(ROOT_WITH_OFFSET + ROOT_WITH_OFFSET.splitlines()[-1] + "\n")
     with pytest.raises(MotionFileError, match=r"says 3 but 4 frame lines follow; .* set 'Frames:' to 4, else delete"):
         read_bvh(path)
+
+
+@pytest.mark.parametrize(
+    "frame_time, fps",
+    [("0.0083333", 120), ("0.008333", 120), ("0.0333", 30), ("0.0166833", 60 / 1.001), ("0.0417083", 24 / 1.001),
+     ("0.0333667", 30 / 1.001), ("0.033", 1 / 0.033)],
+)  # fmt: skip
+def test_a_rounded_frame_time_is_a_whole_or_ntsc_rate_and_written_back_as_one(frame_time, fps, tmp_path):
+    """59.94 fps kept at 60 would drift from the take's video by 0.1 %."""
+    path = tmp_path / "take.bvh"
+    path.write_text(chain_bvh(2, frame_time=frame_time))
+    motion = read_bvh(path)
+    assert motion.fps == pytest.approx(fps, rel=1e-12)
+    write_bvh(tmp_path / "again.bvh", motion)
+    assert read_bvh(tmp_path / "again.bvh").fps == motion.fps
+
+
+def test_joint_names_with_spaces_are_read_and_written_back(walk, tmp_path):
+    """3ds Max's Biped names its joints ``Bip01 L Thigh``: the rest of the line is the name
+    (up to a brace on the same line)."""
+    path = tmp_path / "walk.bvh"
+    write_bvh(path, walk)
+    text = path.read_text().replace("ROOT Hips\n", "ROOT Bip01 Pelvis\n")
+    text = text.replace("JOINT LeftUpLeg\n\t\t{", "JOINT Bip01 L Thigh {").replace(
+        "JOINT RightUpLeg\n", "JOINT Bip01 R Thigh\n"
+    )
+    path.write_text(text)
+    motion = read_bvh(path)
+    names = motion.skeleton.names
+    assert names[0] == "Bip01 Pelvis" and "Bip01 L Thigh" in names and "Bip01 R Thigh" in names
+    np.testing.assert_array_equal(motion.channels, walk.channels)
+    write_bvh(tmp_path / "again.bvh", motion)
+    assert read_bvh(tmp_path / "again.bvh").skeleton.names == names
+
+
+def test_an_empty_a_motion_only_a_utf16_and_a_dos_terminated_file(walk, tmp_path):
+    """Each gets the message that says what it is, or opens: a Windows "Unicode" save is
+    UTF-16, a DOS editor ends a file with Ctrl-Z (0x1A), some writers pad it with NULs."""
+    _expect(tmp_path, "", "the file is empty")
+    _expect(tmp_path, "MOTION\nFrames: 1\nFrame Time: 0.1\n0 0 0\n", "no HIERARCHY section")
+    path = tmp_path / "walk.bvh"
+    write_bvh(path, walk)
+    text = path.read_text()
+    for name, data in (("utf16.bvh", text.encode("utf-16")), ("dos.bvh", text.encode() + b"\x1a"),
+                       ("padded.bvh", text.encode() + b"\x00" * 7)):  # fmt: skip
+        (tmp_path / name).write_bytes(data)
+        np.testing.assert_array_equal(read_bvh(tmp_path / name).channels, walk.channels)

@@ -29,7 +29,7 @@ POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 
 # Rest-pose height (in file units) -> unit size in cm, for files that do not say.
 # A standing adult is 150-200 cm tall; the table names the unit that makes it so.
-_KNOWN_UNITS_CM = ((5.64, "CMU cgspeed units"), (1.0, "cm"), (2.54, "inches"), (100.0, "m"))
+_KNOWN_UNITS_CM = ((5.64, "CMU cgspeed units"), (1.0, "cm"), (2.54, "inches"), (100.0, "m"), (0.1, "mm"))
 
 
 @dataclass(frozen=True, eq=False)

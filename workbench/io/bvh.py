@@ -46,6 +46,7 @@ class _Tokens:
         self.lines_read = 0
         self._stream = self._split(lines)
         self._line = 1
+        self._back: tuple[str, int] | None = None  # a token read ahead and given back
 
     def _split(self, lines: Iterator[str]) -> Iterator[tuple[str, int]]:
         for n, line in enumerate(lines, start=1):
@@ -60,15 +61,29 @@ class _Tokens:
                 yield from ((w, n) for w in words)
 
     def next(self, what: str) -> tuple[str, int]:
-        tok = next(self._stream, None)
+        tok, self._back = (self._back, None) if self._back is not None else (next(self._stream, None), None)
         if tok is None:
             raise MotionFileError(self.path, f"file ends inside the HIERARCHY section, expected {what}", self._line)
         self._line = tok[1]
         return tok
 
+    def name(self, what: str) -> tuple[str, int]:
+        """The next token and those after it on its line up to a ``{``, joined by spaces:
+        a joint's name, which may hold spaces (3ds Max's ``Bip01 L Thigh``)."""
+        first, line = self.next(what)
+        words = [first]
+        while (tok := next(self._stream, None)) is not None and tok[1] == line and tok[0] != "{":
+            words.append(tok[0])
+        self._back = tok
+        return " ".join(words), line
+
+    def give_back(self, tok: tuple[str, int]) -> None:
+        """Make ``tok`` the next token again."""
+        self._back = tok
+
     def left_over(self) -> tuple[str, int] | None:
         """The next token before the MOTION line, if any."""
-        return next(self._stream, None)
+        return self._back if self._back is not None else next(self._stream, None)
 
     def expect(self, word: str) -> int:
         tok, line = self.next(repr(word))
@@ -104,9 +119,13 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
     end_sites: list[tuple[int, tuple[float, float, float]]] = []
     path = tokens.path
 
+    if (first := tokens.left_over()) is None:
+        raise MotionFileError(path, "the file is empty" if tokens.motion_line is None else "no HIERARCHY section")
+    tokens.give_back(first)
     tok, line = tokens.next("'HIERARCHY'")
     if tok.upper() != "HIERARCHY":
-        raise MotionFileError(path, f"not a BVH file: expected 'HIERARCHY', found {tok!r}", line)
+        shown = f"{tok[:20]!r}{'...' if len(tok) > 20 else ''}"
+        raise MotionFileError(path, f"not a BVH file: expected 'HIERARCHY', found {shown}", line)
     tok, line = tokens.next("'ROOT'")
     if tok != "ROOT":
         raise MotionFileError(path, f"expected 'ROOT', found {tok!r}", line)
@@ -119,7 +138,7 @@ def _parse_hierarchy(tokens: _Tokens) -> Skeleton:
 
     def open_joint(parent: int) -> int:
         """Read a joint's name, brace, OFFSET and CHANNELS; its index."""
-        name, line = tokens.next("a joint name")
+        name, line = tokens.name("a joint name")
         if len(names) >= MAX_JOINTS:
             raise MotionFileError(path, f"more than {MAX_JOINTS:,} joints: no capture skeleton has so many", line)
         if name in seen:
@@ -333,9 +352,12 @@ def _is_number(word: str) -> bool:
 
 def fps_from_frame_time(frame_time: float) -> float:
     """Frames per second; snapped to a whole number when the file rounded its frame time
-    (``.0083333`` is 120 fps)."""
+    (``.0083333`` is 120 fps), or to the NTSC rate N / 1.001 near it (``0.0166833`` is
+    59.94 fps, not 60: a take kept at 60 would drift from its video by 0.1 %), whichever
+    lies nearer."""
     fps = 1.0 / frame_time
-    return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
+    nearest = min((round(fps), round(fps * 1.001) / 1.001), key=lambda rate: abs(fps - rate))
+    return float(nearest) if abs(fps - nearest) < 1e-3 * fps else fps
 
 
 def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:

@@ -40,10 +40,19 @@ class Lines:
 
     def __init__(self, path: str | Path) -> None:
         self.path = path
+        if Path(path).exists() and not Path(path).is_file():  # a pipe would block the read for ever
+            raise MotionFileError(path, "not a file (a folder, a pipe or a device): name a motion file")
         try:
-            self.raw = Path(path).read_bytes()
+            raw = Path(path).read_bytes()
         except OSError as err:
             raise MotionFileError(path, f"cannot read the file ({err.strerror or err})") from None
+        if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):  # a Windows "Unicode" save: read as UTF-8
+            try:
+                raw = raw.decode("utf-16").encode("utf-8")
+            except UnicodeDecodeError:
+                raise MotionFileError(path, "starts as UTF-16 text but is not: the file is damaged") from None
+        # a DOS end-of-file mark or NUL padding after the text is not a line of the take
+        self.raw = raw.rstrip(b"\x00\x1a")
         self._progress = _Progress()
         # the generator sees the bytes and the progress, not this object: no reference
         # cycle, so the file's bytes go as soon as the reader drops it, not at the next
