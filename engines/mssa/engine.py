@@ -11,13 +11,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.core.channels import rewrap_deg, unwrap_deg
+from workbench.core.channels import unwrap_deg
 from workbench.core.kinematics import inverse_kinematics
 from workbench.core.motion import Motion, Observation, angle_columns, channel_matrix
 from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo, trained
 from workbench.engine.canonical import CanonicalBody
-from workbench.engine.signal import bridge_gaps
+from workbench.engine.signal import bridge_gaps, rewrap_angles
 from workbench.engine.smoothing import ik_reference, measurement_variance, smooth_observed, smoothing_ratio
 
 from .bases import filter_bases, lag_covariance
@@ -340,8 +340,7 @@ class MSSA(Engine):
                 root, angles, translations = body.solve(canonical, root_track[:, :3], reference, **ik)
                 weight = _take_weights(body, weight, observation.observed)
             out = channel_matrix(root, angles, translations)
-        raw = observation.motion.channels  # (a copy: made only now, not held through the filter)
-        rewrap_deg(out[:, 3:], raw[:, 3:], mask[:, 3:], copy=False)  # the input's angle branch
+        rewrap_angles(out, observation, copy=False)  # the input's angle branch (and Euler triples)
         motion = observation.motion.with_channels(out)
         return CleanResult(motion, diagnostics | {"robust_weight": weight})
 

@@ -241,6 +241,32 @@ def test_an_outlier_half_a_turn_off_leaves_no_whole_turn_in_the_smoothed_take(wa
     assert err.max() < 15.0
 
 
+@pytest.mark.parametrize("spec", ["gaussian", "kalman", "butterworth", "lerp>gaussian", "mssa", "ebf", "cae"])
+def test_a_joint_passing_through_gimbal_lock_is_smoothed_as_one_rotation(spec, walk):
+    """An arm raised through the lock of its Euler order: the exporter's triple jumps to
+    the other triple of the same rotation, (a, b, c) -> (a + 180, 180 - b, c + 180). Each
+    channel smoothed on its own made that a hand turned 100 degrees and more; the engines
+    see the triple continued and write the take's own triples back."""
+    from workbench.core.rotations import euler_to_matrix, matrix_to_euler
+
+    m = walk.slice(1, 241)
+    j = m.skeleton.names.index("LeftArm")
+    order = m.skeleton.rotation_order(j)
+    lift = np.linspace(60.0, 120.0, m.n_frames)  # the middle axis through 90 degrees
+    turns = np.stack([np.full(m.n_frames, 30.0), lift, np.full(m.n_frames, 20.0)], axis=1)
+    triples = matrix_to_euler(euler_to_matrix(turns, order), order)
+    X = m.channels
+    X[:, 3 + 3 * j : 6 + 3 * j] = triples
+    take = m.with_channels(X)
+    assert np.abs(np.diff(triples[:, 0])).max() > 170.0  # the take's own triples jump
+    out = create(spec).clean(Observation(take)).motion.channels[:, 3 + 3 * j : 6 + 3 * j]
+    R, Q = euler_to_matrix(triples, order), euler_to_matrix(out, order)
+    turned = np.degrees(np.arccos(np.clip((np.einsum("fij,fij->f", R, Q) - 1.0) / 2.0, -1.0, 1.0)))
+    assert turned.max() < 3.0
+    near = np.abs(wrap_deg(out - triples)).max(axis=1) < 10.0  # on the take's triples, not the other ones
+    assert near.mean() > 0.95
+
+
 # -- gaussian -------------------------------------------------------------------------
 def _one_channel(motion: Motion, values: np.ndarray, joint: int = 7, k: int = 1) -> Motion:
     X = motion.channels

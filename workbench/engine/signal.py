@@ -11,6 +11,11 @@ sample was observed.
   :func:`workbench.core.channels.unwrap_deg`) and gaps interpolated;
   :meth:`Prepared.output` puts a filtered result back on the input's angle branch.
   :func:`bridge_gaps`, :func:`rewrap_angles` and :func:`fill_gaps` are its short forms.
+  Unwrapping also follows a joint through gimbal lock (:func:`euler_flips`): there its
+  exporter's Euler triple jumps to the other triple of the same rotation (a, b, c) ->
+  (a + 180, 180 - b, c + 180), which a filter of each channel would smooth into a
+  rotation 100 degrees and more off; the filter sees the triple continued, and the
+  output is put back on the jumping one.
 * :func:`normalized_gaussian`: the normalised convolution of Knutsson and Westin (1993),
   ``G*(c x) / G*c`` with certainty ``c``, zero padded outside the clip, so missing
   samples and the clip's ends do not pull the signal towards 0.
@@ -25,8 +30,11 @@ import scipy.fft as sfft
 
 from ..core.channels import forward_fill, interpolate_gaps, rewrap_deg, unwrap_deg
 from ..core.motion import Observation, angle_slice
+from ..core.rotations import alternative_euler, wrap_deg
 
 __all__ = [
+    "EulerFlips",
+    "euler_flips",
     "Prepared",
     "prepare",
     "bridge_gaps",
@@ -37,6 +45,71 @@ __all__ = [
     "convolve_time",
     "normalized_gaussian",
 ]
+
+
+@dataclass(frozen=True)
+class EulerFlips:
+    """Where a take's joints pass through gimbal lock and their Euler triples jump to the
+    other triple of the same rotation (made by :func:`euler_flips`).
+
+    Attributes
+    ----------
+    joints : ndarray of int, shape (K,)
+        The joints whose triples jump.
+    other : ndarray of bool, shape (F, K)
+        True where a frame's triple is read as the other one to continue the one before
+        (:func:`workbench.core.rotations.alternative_euler`); a missing frame as the
+        observed frame before it.
+    """
+
+    joints: np.ndarray
+    other: np.ndarray
+
+    def swap(self, channels: np.ndarray) -> None:
+        """Replace the flagged frames' triples of a channel matrix (F, D) by their other
+        triples, in place: from the take's to the continued ones and back (the same
+        rotations; equal to the originals modulo 360)."""
+        for k, j in enumerate(self.joints):
+            cols = slice(3 + 3 * j, 6 + 3 * j)  # joint j's angles (angle_slice: after the root position)
+            rows = self.other[:, k]
+            channels[rows, cols] = alternative_euler(channels[rows, cols])
+
+
+#: how near gimbal lock (degrees of the middle angle) a joint's triple may jump to the other one
+LOCK_DEG = 60.0
+
+
+def euler_flips(observation: Observation) -> EulerFlips | None:
+    """The joints of ``observation`` whose Euler triple jumps, between observed frames, to
+    the other triple of the same rotation (nearer to the frame before than its own, both
+    middle angles beyond :data:`LOCK_DEG` on one side), and where; None where none does
+    (most takes). A joint can only do so where its first and
+    third angles both span 180 degrees or more, so only those are looked at."""
+    skeleton, F = observation.skeleton, observation.n_frames
+    angles = observation.motion.channels[:, angle_slice(skeleton)]
+    if F < 2:
+        return None
+    with np.errstate(invalid="ignore"):
+        span = (np.fmax.reduce(angles, axis=0) - np.fmin.reduce(angles, axis=0)).reshape(-1, 3)  # NaN-ignoring
+    candidates = np.flatnonzero((span[:, 0] >= 180.0) & (span[:, 2] >= 180.0))
+    if not candidates.size:
+        return None
+    seen = observation.observed[:, candidates]
+    triples = angles.reshape(F, -1, 3)[:, candidates].reshape(F, -1)
+    filled = forward_fill(triples, np.repeat(seen, 3, axis=1)).reshape(F, -1, 3)  # a gap: no jump inside it
+    before, now = filled[:-1], filled[1:]
+    own = np.sum(wrap_deg(now - before) ** 2, axis=-1)
+    other = np.sum(wrap_deg(alternative_euler(now) - before) ** 2, axis=-1)
+    # both middle angles near the same lock (+-90), where the two triples meet: an outlier,
+    # which may also lie nearer the other triple, is no reason to read the take otherwise
+    locked = (np.abs(before[..., 1]) > LOCK_DEG) & (np.abs(now[..., 1]) > LOCK_DEG) & (before[..., 1] * now[..., 1] > 0)
+    jumps = (other < own) & locked  # (F - 1, K)
+    jumping = jumps.any(axis=0)
+    if not jumping.any():
+        return None
+    flags = np.zeros((F, int(jumping.sum())), bool)
+    flags[1:] = np.cumsum(jumps[:, jumping], axis=0) % 2 == 1  # each jump switches the triple read
+    return EulerFlips(candidates[jumping], flags)
 
 
 @dataclass(frozen=True)
@@ -56,6 +129,8 @@ class Prepared:
         The columns whose unwrapping changed something.
     complete : bool
         Nothing is missing.
+    flips : EulerFlips or None
+        The joints whose triples :attr:`bridged` continues through gimbal lock.
     """
 
     raw: np.ndarray
@@ -63,6 +138,7 @@ class Prepared:
     bridged: np.ndarray
     wrapped: np.ndarray
     complete: bool
+    flips: EulerFlips | None = None
 
     def output(self, Y: np.ndarray) -> np.ndarray:
         """Put a filtered matrix of unwrapped angles back on the input's angle branch.
@@ -77,11 +153,14 @@ class Prepared:
         ndarray, shape (F, D)
             ``Y`` with the unwrapped angle columns shifted by whole turns to follow the
             raw angles (:func:`workbench.core.channels.rewrap_deg`): equal to ``Y``
-            modulo 360.
+            modulo 360; the :attr:`flips` joints' triples on the raw ones' (the same
+            rotations).
         """
         if not self.wrapped.size:
             return Y
         Y = np.array(Y, dtype=float)
+        if self.flips is not None:
+            self.flips.swap(Y)
         w = self.wrapped
         Y[:, w] = rewrap_deg(Y[:, w], self.raw[:, w], self.mask[:, w])
         return Y
@@ -107,24 +186,31 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
         The raw matrix, its mask and the bridged matrix; ``output`` puts a result back.
     """
     mask = observation.channel_observed
-    raw = observation.motion.channels
+    raw = source = observation.motion.channels
     complete = bool(observation.observed.all())
+    flips = euler_flips(observation)
+    if flips is not None:  # the triples continued through gimbal lock, then unwrapped as any
+        source = raw.copy()
+        flips.swap(source)
     # only a column spanning 180 degrees or more can step by that much between samples
     first = angle_slice(observation.skeleton).start
-    angles = raw[:, angle_slice(observation.skeleton)]
+    angles = source[:, angle_slice(observation.skeleton)]
     span = np.fmax.reduce(angles, axis=0) - np.fmin.reduce(angles, axis=0)  # NaN-ignoring
     wide = np.flatnonzero(span >= 180.0)
     wrapped = np.zeros(0, int)
     if wide.size:
         a = angles[:, wide] if complete else forward_fill(angles[:, wide], mask[:, first + wide])
         wrapped = first + wide[(np.abs(np.diff(a, axis=0)) >= 180.0).any(axis=0)]
-    X = raw
+    X = source
     if wrapped.size:
-        X = raw.copy()
-        X[:, wrapped] = unwrap_deg(raw[:, wrapped], mask[:, wrapped], robust=True)
+        X = source.copy() if source is raw else source
+        X[:, wrapped] = unwrap_deg(source[:, wrapped], mask[:, wrapped], robust=True)
+    if flips is not None:  # put back on the raw triples by output(), with the columns they touch
+        touched = (first + 3 * flips.joints[:, None] + np.arange(3)).ravel()
+        wrapped = np.union1d(wrapped, touched)
     if not complete:
         X = interpolate_gaps(X, mask, kind)
-    return Prepared(raw, mask, X, wrapped, complete)
+    return Prepared(raw, mask, X, wrapped, complete, flips)
 
 
 def bridge_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
@@ -146,7 +232,9 @@ def bridge_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
 
 
 def rewrap_angles(Y: np.ndarray, observation: Observation, *, copy: bool = True) -> np.ndarray:
-    """Shift the angle channels of ``Y`` by whole turns onto the observation's branch.
+    """Shift the angle channels of ``Y`` by whole turns onto the observation's branch
+    (and a joint's triples continued through gimbal lock back onto the observation's,
+    :func:`euler_flips`).
 
     Parameters
     ----------
@@ -166,6 +254,8 @@ def rewrap_angles(Y: np.ndarray, observation: Observation, *, copy: bool = True)
     """
     mask, angles, motion = observation.channel_observed, angle_slice(observation.skeleton), observation.motion
     out = np.array(Y, dtype=float, copy=copy)
+    if (flips := euler_flips(observation)) is not None:  # onto the take's own triples first
+        flips.swap(out)
     rewrap_deg(out[:, angles], motion.angles_deg.reshape(motion.n_frames, -1), mask[:, angles], copy=False)
     return out
 
