@@ -10,7 +10,7 @@ weights are loaded once per worker, not once per take.
 
 Every task cleans with one thread (BLAS and torch), so that a take's result is the same
 bit for bit whatever the number of workers; a serial run is ``workers=1``. (With two
-threads mssa's BLAS sums differ in the last bits; the other engines' results do not.)
+threads mssa's and kalman's BLAS sums differ in the last bits.)
 
 No take is split into chunks: every engine's result at a frame may depend on frames
 any distance away (the Kalman smoother's backward pass, mssa's robust fit of the whole

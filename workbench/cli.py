@@ -478,6 +478,7 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
         record = FolderRecord(Path(args.output), settings, args.resume)
     except ValueError as err:
         raise UserError(str(err)) from None
+    _cluster_notes(args)
     bar = _progress_bar(len(jobs), sum(_size(p) for p, _ in jobs))
     done: list = []
     started = time.time()
@@ -540,6 +541,16 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
             print(f"  {report}", file=sys.stderr)
         return 2
     return 0
+
+
+def _cluster_notes(args) -> None:
+    """On stderr, before a cluster is reached: that --workers does not apply to an
+    existing one, and that reaching one may take Dask's 30-s timeout."""
+    if args.scheduler is None:
+        return
+    if args.workers:
+        print(f"note: --workers is for a local cluster; the one at {args.scheduler} has its own", file=sys.stderr)
+    print(f"note: reaching the Dask scheduler at {args.scheduler} (up to 30 s)", file=sys.stderr)
 
 
 def _size(path: Path, since: float | None = None) -> int:
@@ -657,6 +668,7 @@ def cmd_bench(args) -> int:
         def progress(msg):
             print("  " + msg, file=sys.stderr)
 
+    _cluster_notes(args)
     result = run_benchmark(
         specs,
         args.corrupt,
