@@ -77,13 +77,18 @@ class EulerFlips:
 
 #: how near gimbal lock (degrees of the middle angle) a joint's triple may jump to the other one
 LOCK_DEG = 60.0
+#: the most white noise (std, degrees, from the median second difference) a joint's angles
+#: may carry for its jumps to be told from noise: the two triples lie 250 degrees and more
+#: apart, and noise near that would flip the reading at random frames (Bandai's spine near
+#: lock under ``angular:0.5``: 15-50 degrees a channel)
+NOISE_LIMIT_DEG = 10.0
 
 
 def euler_flips(observation: Observation) -> EulerFlips | None:
     """The joints of ``observation`` whose Euler triple jumps, between observed frames, to
     the other triple of the same rotation (nearer to the frame before than its own, both
     middle angles beyond :data:`LOCK_DEG` on one side), and where; None where none does
-    (most takes). A joint can only do so where its first and
+    (most takes). Joints noisier than :data:`NOISE_LIMIT_DEG` are left out. A joint can only do so where its first and
     third angles both span 180 degrees or more, so only those are looked at."""
     skeleton, F = observation.skeleton, observation.n_frames
     angles = observation.motion.channels[:, angle_slice(skeleton)]
@@ -97,6 +102,12 @@ def euler_flips(observation: Observation) -> EulerFlips | None:
     seen = observation.observed[:, candidates]
     triples = angles.reshape(F, -1, 3)[:, candidates].reshape(F, -1)
     filled = forward_fill(triples, np.repeat(seen, 3, axis=1)).reshape(F, -1, 3)  # a gap: no jump inside it
+    if F >= 3:  # a joint as noisy as a lock's two triples are near is left as it is (noise would flip it)
+        jerk = np.median(np.abs(np.diff(filled, 2, axis=0)), axis=0)  # (K, 3): robust to the jumps themselves
+        quiet = (jerk / (0.6745 * np.sqrt(6.0))).max(axis=1) <= NOISE_LIMIT_DEG
+        candidates, filled = candidates[quiet], filled[:, quiet]
+        if not candidates.size:
+            return None
     before, now = filled[:-1], filled[1:]
     own = np.sum(wrap_deg(now - before) ** 2, axis=-1)
     other = np.sum(wrap_deg(alternative_euler(now) - before) ** 2, axis=-1)
