@@ -15,7 +15,7 @@ import numpy as np
 from workbench.core.motion import Motion, Observation, angle_columns
 from workbench.core.rotations import euler_to_matrix
 from workbench.core.skeleton import Skeleton
-from workbench.engine.signal import bridge_gaps
+from workbench.engine.signal import bridge_gaps, euler_flips
 from workbench.engine.smoothing import measurement_variance, smoothing_ratio
 
 #: frames of look-back and of look-ahead of every window (Mall et al. §3, at 120 fps)
@@ -179,6 +179,9 @@ def frame_data(
     X = bridge_gaps(observation)
     values = anchor_turns(X[:, layout.columns], norm.angle_mean)
     X[:, layout.columns] = values
+    seen = values  # what the network sees: the take's own triples, as it learnt them (jumps at gimbal lock too)
+    if euler_flips(observation) is not None:  # the values filtered are continued through the lock
+        seen = anchor_turns(bridge_gaps(observation, through_lock=False)[:, layout.columns], norm.angle_mean)
     missing = ~observation.channel_observed[:, layout.columns]
     F, C = values.shape
     n_context = (C if with_noise else 0) + (C if with_smoothing else 0)
@@ -186,7 +189,7 @@ def frame_data(
     velocity = layout.root_velocity(X, observation.motion.fps)
     for start in range(0, F, FEATURE_BLOCK):  # float64 arithmetic, float32 kept: no whole-take temporaries
         block = slice(start, start + FEATURE_BLOCK)
-        inputs[block, : C + 3] = norm(np.concatenate([values[block], velocity[block]], axis=1))
+        inputs[block, : C + 3] = norm(np.concatenate([seen[block], velocity[block]], axis=1))
     if with_mask:
         inputs[:, C + 3 : 2 * C + 3] = ~missing
     if n_context:

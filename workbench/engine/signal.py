@@ -177,7 +177,7 @@ class Prepared:
         return Y
 
 
-def prepare(observation: Observation, kind: str = "linear") -> Prepared:
+def prepare(observation: Observation, kind: str = "linear", *, through_lock: bool = True) -> Prepared:
     """Unwrap and bridge an observation's channel matrix for a filter.
 
     Only the columns that need it are touched (most takes have no angle wrapping and
@@ -190,6 +190,10 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
         The take as an engine sees it (NaN where missing).
     kind : {"linear", "cubic"}
         How gaps are bridged (:func:`workbench.core.channels.interpolate_gaps`).
+    through_lock : bool
+        Continue the triples of joints that pass through gimbal lock (:func:`euler_flips`);
+        False: keep the take's own triples, jumps and all (as a network trained on them
+        saw them).
 
     Returns
     -------
@@ -199,7 +203,7 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
     mask = observation.channel_observed
     raw = source = observation.motion.channels
     complete = bool(observation.observed.all())
-    flips = euler_flips(observation)
+    flips = euler_flips(observation) if through_lock else None
     if flips is not None:  # the triples continued through gimbal lock, then unwrapped as any
         source = raw.copy()
         flips.swap(source)
@@ -224,7 +228,7 @@ def prepare(observation: Observation, kind: str = "linear") -> Prepared:
     return Prepared(raw, mask, X, wrapped, complete, flips)
 
 
-def bridge_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
+def bridge_gaps(observation: Observation, kind: str = "linear", *, through_lock: bool = True) -> np.ndarray:
     """The observation's channel matrix, angles unwrapped and gaps interpolated.
 
     Parameters
@@ -232,13 +236,15 @@ def bridge_gaps(observation: Observation, kind: str = "linear") -> np.ndarray:
     observation : Observation
     kind : {"linear", "cubic"}
         As in :func:`prepare`.
+    through_lock : bool
+        As in :func:`prepare`.
 
     Returns
     -------
     ndarray, shape (F, D)
         A new array (degrees and file units), finite everywhere.
     """
-    p = prepare(observation, kind)
+    p = prepare(observation, kind, through_lock=through_lock)
     return p.bridged.copy() if p.bridged is p.raw else p.bridged
 
 
