@@ -267,6 +267,33 @@ def test_a_joint_passing_through_gimbal_lock_is_smoothed_as_one_rotation(spec, w
     assert near.mean() > 0.95
 
 
+def test_a_jump_at_gimbal_lock_is_told_from_noise_and_from_a_gap(walk):
+    """The reading goes through the lock only where the jump is plain: not where the
+    joint is as noisy as the two triples are near, not across a gap (the motion may have
+    turned that way on its own), not at an outlier far from the lock."""
+    from workbench.core.rotations import euler_to_matrix, matrix_to_euler
+    from workbench.engine.signal import euler_flips
+
+    m = walk.slice(1, 241)
+    j = m.skeleton.names.index("LeftArm")
+    order = m.skeleton.rotation_order(j)
+    turns = np.stack([np.full(240, 30.0), np.linspace(60.0, 120.0, 240), np.full(240, 20.0)], axis=1)
+    X = m.channels
+    X[:, 3 + 3 * j : 6 + 3 * j] = matrix_to_euler(euler_to_matrix(turns, order), order)
+    flips = euler_flips(Observation(m.with_channels(X)))
+    assert list(flips.joints) == [j] and flips.other[:, 0].sum() == 120  # the second half read as the other triple
+    noisy = X.copy()
+    noisy[:, 3 + 3 * j : 6 + 3 * j] += np.random.default_rng(0).normal(scale=20.0, size=(240, 3))
+    assert euler_flips(Observation(m.with_channels(noisy))) is None
+    observed = np.ones((240, m.skeleton.n_joints), bool)
+    observed[110:130, j] = False  # the lock passed inside a gap
+    assert euler_flips(Observation(m.with_channels(X), observed)) is None
+    far = X.copy()
+    far[:, 3 + 3 * j : 6 + 3 * j] = matrix_to_euler(euler_to_matrix(turns - [0.0, 60.0, 0.0], order), order)
+    far[100, 3 + 3 * j : 6 + 3 * j] += [170.0, 0.0, 170.0]  # an outlier nearer the other triple, far from the lock
+    assert euler_flips(Observation(m.with_channels(far))) is None
+
+
 # -- gaussian -------------------------------------------------------------------------
 def _one_channel(motion: Motion, values: np.ndarray, joint: int = 7, k: int = 1) -> Motion:
     X = motion.channels

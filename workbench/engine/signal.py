@@ -88,8 +88,9 @@ def euler_flips(observation: Observation) -> EulerFlips | None:
     """The joints of ``observation`` whose Euler triple jumps, between observed frames, to
     the other triple of the same rotation (nearer to the frame before than its own, both
     middle angles beyond :data:`LOCK_DEG` on one side), and where; None where none does
-    (most takes). Joints noisier than :data:`NOISE_LIMIT_DEG` are left out. A joint can only do so where its first and
-    third angles both span 180 degrees or more, so only those are looked at."""
+    (most takes). Joints noisier than :data:`NOISE_LIMIT_DEG` are left out, and so are jumps
+    across a gap. A joint can only jump where its first and third angles both span 180
+    degrees or more, so only those are looked at."""
     skeleton, F = observation.skeleton, observation.n_frames
     angles = observation.motion.channels[:, angle_slice(skeleton)]
     if F < 2:
@@ -102,19 +103,24 @@ def euler_flips(observation: Observation) -> EulerFlips | None:
     seen = observation.observed[:, candidates]
     triples = angles.reshape(F, -1, 3)[:, candidates].reshape(F, -1)
     filled = forward_fill(triples, np.repeat(seen, 3, axis=1)).reshape(F, -1, 3)  # a gap: no jump inside it
-    if F >= 3:  # a joint as noisy as a lock's two triples are near is left as it is (noise would flip it)
-        jerk = np.median(np.abs(np.diff(filled, 2, axis=0)), axis=0)  # (K, 3): robust to the jumps themselves
-        quiet = (jerk / (0.6745 * np.sqrt(6.0))).max(axis=1) <= NOISE_LIMIT_DEG
-        candidates, filled = candidates[quiet], filled[:, quiet]
-        if not candidates.size:
-            return None
+    # a joint as noisy as a lock's two triples are near is left as it is (noise would flip
+    # it): its noise from the second differences of observed frames, robust to the jumps
+    runs = seen[:-2] & seen[1:-1] & seen[2:]
+    jerk = np.abs(np.diff(filled, 2, axis=0))
+    middle = [np.median(jerk[run, k], axis=0).max() if run.any() else np.inf for k, run in enumerate(runs.T)]
+    quiet = np.array(middle) / (0.6745 * np.sqrt(6.0)) <= NOISE_LIMIT_DEG  # white noise's std from that median
+    if not quiet.any():
+        return None
+    candidates, filled, seen = candidates[quiet], filled[:, quiet], seen[:, quiet]
     before, now = filled[:-1], filled[1:]
     own = np.sum(wrap_deg(now - before) ** 2, axis=-1)
     other = np.sum(wrap_deg(alternative_euler(now) - before) ** 2, axis=-1)
     # both middle angles near the same lock (+-90), where the two triples meet: an outlier,
     # which may also lie nearer the other triple, is no reason to read the take otherwise
     locked = (np.abs(before[..., 1]) > LOCK_DEG) & (np.abs(now[..., 1]) > LOCK_DEG) & (before[..., 1] * now[..., 1] > 0)
-    jumps = (other < own) & locked  # (F - 1, K)
+    # between frames observed one after the other: across a gap the motion may have turned
+    # the other triple's way on its own
+    jumps = (other < own) & locked & seen[:-1] & seen[1:]  # (F - 1, K)
     jumping = jumps.any(axis=0)
     if not jumping.any():
         return None
