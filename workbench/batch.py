@@ -340,8 +340,12 @@ class FolderRecord:
             return False
 
     def add(self, report: TakeReport) -> None:
-        """Record a take ``report`` says was written (appended, flushed to disk)."""
-        stat = report.output.stat()
+        """Record a take ``report`` says was written (appended, flushed to disk); one gone
+        since (moved away meanwhile) is left out, so a resume cleans it again."""
+        try:
+            stat = report.output.stat()
+        except OSError:
+            return
         entry = {"output": self._key(report.output), "stamp": report.stamp}
         entry |= {"size": stat.st_size, "mtime_ns": stat.st_mtime_ns}
         with self.path.open("a", encoding="utf-8", newline="\n") as f:
