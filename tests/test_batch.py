@@ -294,3 +294,39 @@ def test_a_joint_flagged_in_every_frame_is_kept_as_observed_with_a_note(embedded
     report = batch.clean_file(create("identity"), take, tmp_path / "out.bvh", fill_suspects=True)
     assert any("flagged as bad data in every frame it was observed, so kept as observed" in n for n in report.notes)
     assert read_bvh(tmp_path / "out.bvh").channels[:, :3] == pytest.approx(channels[:, :3], abs=1e-3)
+
+
+def test_a_record_of_the_old_layout_or_cut_short_resumes_again_and_again(library, tmp_path, capsys):
+    """The record is written whole when a resume opens it: lines appended to an old
+    record (one JSON object over several lines) or to a line cut short stay readable."""
+    out = tmp_path / "out"
+    argv = ["clean", str(library), "-o", str(out), "--engine", "kalman", "--workers", "1"]
+    assert main(argv) == 0
+    record = out / batch.MANIFEST
+    settings = json.loads(record.read_text().splitlines()[0])["settings"]
+    record.write_text(json.dumps(settings, indent=1) + "\n")  # as a clean before this layout wrote it
+    for _ in range(3):  # the first cleans all again (the old record vouches for none), then keeps them
+        assert main([*argv, "--resume"]) == 0
+    assert capsys.readouterr().out.count("kept ") == 6
+    with record.open("a") as f:
+        f.write('{"output": "walk.bvh", "sta')  # a killed process's last line
+    for _ in range(2):
+        assert main([*argv, "--resume"]) == 0
+    assert capsys.readouterr().out.count("kept ") == 6
+
+
+def test_an_amc_take_is_cleaned_again_when_its_asf_skeleton_changes(tmp_path, data_root):
+    asf = next(data_root.glob("cmu/asfamc/*/*.asf"))
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    amc = next(asf.parent.glob("*.amc"))
+    (takes / asf.name).write_bytes(asf.read_bytes())
+    (takes / amc.name).write_bytes(amc.read_bytes())
+    record = batch.FolderRecord(tmp_path / "out", {"engine": "identity"}, resume=False)
+    output = tmp_path / "out" / amc.with_suffix(".bvh").name
+    report = batch.clean_task("identity", None, str(takes / amc.name), str(output), False)
+    assert report.error is None and report.stamp["skeleton"]
+    record.add(report)
+    assert record.up_to_date(takes / amc.name, output)
+    (takes / asf.name).write_text((takes / asf.name).read_text().replace("\n", "\n ", 1))  # an edit
+    assert not record.up_to_date(takes / amc.name, output)

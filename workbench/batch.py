@@ -245,23 +245,37 @@ def clean_task(
     try:
         with one_thread():
             engine = worker_engine(spec, mapping)
+            try:  # before the take is read: an edit while it is cleaned then shows on the next resume
+                stamp = take_stamp(Path(source))
+            except OSError:  # (clean_file says what is wrong with it)
+                stamp = None
             report = clean_file(engine, Path(source), Path(output), None, keep_reference, fill_suspects)
-            return replace(report, stamp=take_stamp(Path(source)))  # (read, so a file: no pipe to block on)
+            return replace(report, stamp=stamp)
     except Exception as err:  # reported with the others at the end, never raised on the worker
         return TakeReport(Path(source), Path(output), error=describe(err))
 
 
 # -- the batch --------------------------------------------------------------------------
 def take_stamp(source: Path) -> dict:
-    """What a take is cleaned from: the SHA-256 of its bytes and of its mask sidecar's
-    (None where it has none). Raises OSError where the take cannot be read."""
+    """What a take is cleaned from: the SHA-256 of its bytes, of its mask sidecar's (None
+    where it has none) and, for an AMC take, of its ASF skeleton's. Raises OSError where
+    the take cannot be read."""
     from .engine.weights import sha256_file
     from .io.mask import sidecar_path
 
-    if not source.is_file():
+    if not source.is_file():  # (a pipe would block the read)
         raise OSError(f"{source} is not a file")
     sidecar = sidecar_path(source)
-    return {"take": sha256_file(source), "mask": sha256_file(sidecar) if sidecar.is_file() else None}
+    stamp = {"take": sha256_file(source), "mask": sha256_file(sidecar) if sidecar.is_file() else None}
+    if source.suffix.lower() == ".amc":
+        from .io.asfamc import find_asf
+        from .io.errors import MotionFileError
+
+        try:
+            stamp["skeleton"] = sha256_file(find_asf(source))
+        except MotionFileError as err:
+            raise OSError(str(err)) from None
+    return stamp
 
 
 class FolderRecord:
@@ -290,7 +304,10 @@ class FolderRecord:
                 )
         else:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(self.path, json.dumps({"settings": settings}) + "\n")
+        # written whole (atomically): a record of the old layout or a last line cut short
+        # would otherwise take the lines appended after it
+        lines = [{"settings": settings}, *self.done.values()]
+        atomic_write_text(self.path, "".join(json.dumps(line) + "\n" for line in lines))
 
     def _read(self) -> tuple[dict, dict[str, dict]]:
         unreadable = ValueError(

@@ -641,7 +641,8 @@ class ConvAutoencoderEngine(Engine):
         """(F, H) added to the network's output ``out``: its miss (image - out) in full at the
         ``exact`` entries; at the other known entries the miss smoothed row by row by the
         constant-velocity smoother (0 without ``anchor``); bridged linearly across the holes,
-        there its departure from the row's mean miss over the known entries faded by
+        there its departure from the row's mean miss over the known entries (with
+        ``anchor``; else from 0) faded by
         exp(-d / ``miss_fade_s``), d the time (s) to the row's nearest known frame: the
         network's miss at a gap's edges tells less of its miss deeper inside, but what it
         misses at every known frame (a body it has not seen, whose shoulders it pulls 14
@@ -666,7 +667,9 @@ class ConvAutoencoderEngine(Engine):
         holes = ~mask
         cols = np.flatnonzero(holes.any(axis=0))  # rows with a hole: a denoised take has none
         if self.params.miss_fade_s and cols.size:
-            mean = miss[:, cols].sum(axis=0) / np.maximum(kept[:, cols].sum(axis=0), 1)
+            mean = 0.0  # without the anchor the miss is a constraint's alone, which says nothing far from it
+            if self.params.anchor:
+                mean = miss[:, cols].sum(axis=0) / np.maximum(kept[:, cols].sum(axis=0), 1)
             fade = np.exp(-gap_distance(holes[:, cols]) / (self.params.miss_fade_s * self.fps_))
             bridged[:, cols] = mean + (bridged[:, cols] - mean) * fade
         return bridged

@@ -313,6 +313,11 @@ def test_anchor_keeps_the_slow_miss_and_drops_the_fast_one(trained):
         corrected[:, 1], mean + (ramp - mean) * np.exp(-d / engine.params.miss_fade_s), atol=1e-7
     )
     np.testing.assert_allclose(corrected[:, [0, 2, 3]], miss[:, [0, 2, 3]], atol=1e-12)
+    plain = registry.create("cae:anchor=false")  # the miss is the exact entries' alone: it fades to 0, not to a mean
+    exact = np.zeros_like(mask)
+    exact[39, 1] = True
+    constrained = plain.correction(out + miss, mask, out, exact)
+    assert constrained[39, 1] == ramp[39] and abs(constrained[55, 1]) < 0.5 * abs(ramp[39])  # (a mean kept: 0.54)
     unfaded = registry.create("cae:miss_fade_s=0")
     np.testing.assert_allclose(unfaded.correction(out + miss, mask, out, np.zeros_like(mask)), miss, atol=1e-7)
     flips = np.where(np.arange(F) % 2, 1.0, -1.0)[:, None] * np.ones(H)

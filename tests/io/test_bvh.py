@@ -494,6 +494,7 @@ def test_more_frame_lines_than_frames_says_which_line_to_fix(tmp_path):
 @pytest.mark.parametrize(
     "frame_time, fps",
     [("0.0083333", 120), ("0.008333", 120), ("0.0333", 30), ("0.0166833", 60 / 1.001), ("0.0417083", 24 / 1.001),
+     ("0.0417", 24), ("0.0167", 60),
      ("0.0333667", 30 / 1.001), ("0.033", 1 / 0.033)],
 )  # fmt: skip
 def test_a_rounded_frame_time_is_a_whole_or_ntsc_rate_and_written_back_as_one(frame_time, fps, tmp_path):

@@ -358,7 +358,7 @@ def map_humanoid(
     if not checked:
         return HumanoidMapping(skeleton, joints, frozenset(overrides))
     try:
-        _check(skeleton, tree, joints)
+        _check(skeleton, tree, joints, frozenset(pinned))
     except HumanoidError as err:
         if not overrides:
             raise
@@ -369,13 +369,13 @@ def map_humanoid(
     return HumanoidMapping(skeleton, joints, frozenset(overrides))
 
 
-def _check(skeleton: Skeleton, tree: _Tree, joints: tuple[int, ...]) -> None:
+def _check(skeleton: Skeleton, tree: _Tree, joints: tuple[int, ...], pinned: frozenset[str] = frozenset()) -> None:
     names = skeleton.names
     at = dict(zip(CANONICAL_JOINTS, joints))
     missing = [c for c in ESSENTIAL_JOINTS if at[c] < 0]
     if missing:
         # the head, hands and feet are found by their names, the rest from them: name the first
-        named = [c for c in missing if c in _NAMED_JOINTS]
+        named = [c for c in missing if c in _NAMED_JOINTS and c not in pinned]  # (a pin says it is absent)
         followers = [c for c in missing if c not in named]
         because = (
             f" ({', '.join(followers)} {'is' if len(followers) == 1 else 'are'} found from {', '.join(named)}, "

@@ -65,6 +65,21 @@ class EulerFlips:
     joints: np.ndarray
     other: np.ndarray
 
+    def onto(self, channels: np.ndarray, reference: np.ndarray, observed: np.ndarray) -> None:
+        """Put the joints' triples of a channel matrix (F, D) on the triples of
+        ``reference`` (F, D, the take's channels; ``observed`` (F, D) where they are
+        known, the last known one standing for a missing frame), in place: at each frame
+        the one of the two triples of its rotation nearer the reference's (whole turns
+        left to :func:`workbench.core.channels.rewrap_deg`). Unlike :meth:`swap` it can
+        be applied twice (an engine's own output, then its model view's)."""
+        for j in self.joints:
+            cols = slice(3 + 3 * j, 6 + 3 * j)
+            near = forward_fill(reference[:, cols], observed[:, cols])
+            mine = channels[:, cols]
+            other = alternative_euler(mine)
+            closer = np.sum(wrap_deg(other - near) ** 2, axis=1) < np.sum(wrap_deg(mine - near) ** 2, axis=1)
+            channels[closer, cols] = other[closer]
+
     def swap(self, channels: np.ndarray) -> None:
         """Replace the flagged frames' triples of a channel matrix (F, D) by their other
         triples, in place: from the take's to the continued ones and back (the same
@@ -278,7 +293,7 @@ def rewrap_angles(Y: np.ndarray, observation: Observation, *, copy: bool = True)
     mask, angles, motion = observation.channel_observed, angle_slice(observation.skeleton), observation.motion
     out = np.array(Y, dtype=float, copy=copy)
     if (flips := euler_flips(observation)) is not None:  # onto the take's own triples first
-        flips.swap(out)
+        flips.onto(out, motion.channels, mask)
     rewrap_deg(out[:, angles], motion.angles_deg.reshape(motion.n_frames, -1), mask[:, angles], copy=False)
     return out
 

@@ -208,8 +208,8 @@ def _parse_motion(
     motion_text: str, lines: Lines, start: int, skeleton: Skeleton, path: str
 ) -> tuple[float, np.ndarray]:
     """Parse the MOTION section: its line ``motion_text``, line number ``start``
-    (1-based), then the rest of ``lines`` to the file's end: returns (frame time s,
-    values (F, D))."""
+    (1-based), then the rest of ``lines`` to the file's end: returns (frames per second,
+    :func:`fps_from_frame_time` of its frame time, values (F, D))."""
 
     def header(n: int, label: str) -> str:
         text = next(lines, None)
@@ -252,7 +252,9 @@ def _parse_motion(
     if np.isinf(values).any():
         n = int(np.argwhere(np.isinf(values))[0, 0])
         raise MotionFileError(path, f"frame {n}: infinite value", start + 3 + n)
-    return frame_time, values
+    digits = ft_text.lower().split("e")[0].partition(".")[2]
+    decimals = len(digits) if "e" not in ft_text.lower() else None  # as printed: 0.0417 to 4 decimals
+    return fps_from_frame_time(frame_time, decimals), values
 
 
 def _polars():
@@ -350,13 +352,19 @@ def _is_number(word: str) -> bool:
         return False
 
 
-def fps_from_frame_time(frame_time: float) -> float:
+def fps_from_frame_time(frame_time: float, decimals: int | None = None) -> float:
     """Frames per second; snapped to a whole number when the file rounded its frame time
     (``.0083333`` is 120 fps), or to the NTSC rate N / 1.001 near it (``0.0166833`` is
     59.94 fps, not 60: a take kept at 60 would drift from its video by 0.1 %), whichever
-    lies nearer."""
+    lies nearer. A frame time printed to 4 or more ``decimals`` is the rate whose frame
+    time prints as it, the whole number first (``0.0417`` is 24 fps, though nearer 23.976;
+    ``0.0167`` is 60)."""
     fps = 1.0 / frame_time
-    nearest = min((round(fps), round(fps * 1.001) / 1.001), key=lambda rate: abs(fps - rate))
+    whole, ntsc = round(fps), round(fps * 1.001) / 1.001
+    for rate in (whole, ntsc) if decimals is not None and decimals >= 4 else ():
+        if rate > 0 and round(1.0 / rate, decimals) == round(frame_time, decimals):
+            return float(rate)
+    nearest = min((whole, ntsc), key=lambda rate: abs(fps - rate))
     return float(nearest) if abs(fps - nearest) < 1e-3 * fps else fps
 
 
@@ -372,8 +380,8 @@ def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
     header = _parse_hierarchy(tokens).replace(text_encoding=lines.encoding)
     if tokens.motion_line is None:
         raise MotionFileError(path, "no MOTION section: the file ends after the hierarchy", tokens.lines_read)
-    frame_time, values = _parse_motion(tokens.motion_text, lines, tokens.motion_line, header, str(path))
-    motion = _motion_from_values(header, fps_from_frame_time(frame_time), values, name=path.stem)
+    fps, values = _parse_motion(tokens.motion_text, lines, tokens.motion_line, header, str(path))
+    motion = _motion_from_values(header, fps, values, name=path.stem)
     return motion if unit_cm is None else motion.replace(skeleton=motion.skeleton.replace(unit_cm=unit_cm))
 
 
