@@ -154,7 +154,7 @@ def test_paths_reach_the_workers_absolute_and_a_take_that_cannot_be_read_fails_a
 
 
 def test_an_interrupted_batch_says_what_is_done_and_how_to_go_on(library, tmp_path, monkeypatch, capsys):
-    def interrupted(spec, jobs, *options):
+    def interrupted(spec, jobs, *options, **named):
         on_report = options[-1]
         on_report(batch.TakeReport(jobs[0][0], jobs[0][1], frames=10, engine=spec))
         raise KeyboardInterrupt

@@ -669,3 +669,33 @@ def test_bench_names_what_stops_it_before_it_runs(capsys):
     assert "kalman named twice: name each engine once" in capsys.readouterr().err
     assert main(["bench", "--engines", "kalman", "--corrupt", "angular:0.5", "--clips", "cmu/walk/02_01"]) == 2
     assert "the 1 that match are in train: --split NAME or all" in capsys.readouterr().err
+
+
+def test_a_take_s_unit_can_be_given_where_its_rest_pose_guesses_wrong(tmp_path, walk, capsys):
+    """A short character in metres reads as centimetres (no unit makes it 120-220 cm):
+    --unit says what the file's lengths are, for skeleton, inspect, corrupt and clean."""
+    from workbench.io import read_bvh, write_bvh
+
+    take = tmp_path / "walk.bvh"
+    write_bvh(take, walk.slice(1, 100))
+    assert main(["skeleton", str(take)]) == 0
+    assert "unit: 5.64 cm; up" in capsys.readouterr().out
+    assert main(["skeleton", str(take), "--unit", "m"]) == 0
+    assert "unit: 100 cm (--unit); up" in capsys.readouterr().out
+    assert main(["inspect", str(take), "--unit", "2.5"]) == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        main(["skeleton", str(take), "--unit", "furlong"])
+    assert "want mm, cm, m, in, cmu or the unit's size in cm, got 'furlong'" in capsys.readouterr().err
+    assert main(["corrupt", str(take), "-o", str(tmp_path / "n.bvh"), "--corrupt", "spatial:1", "--unit", "cm"]) == 0
+    by_cm = read_bvh(tmp_path / "n.bvh").channels
+    assert main(["corrupt", str(take), "-o", str(tmp_path / "n.bvh"), "--corrupt", "spatial:1"]) == 0
+    assert not np.allclose(read_bvh(tmp_path / "n.bvh").channels, by_cm)  # 1 cm of noise is 1 unit, or 1/5.64
+    folder = tmp_path / "takes"
+    folder.mkdir()
+    take.rename(folder / "walk.bvh")
+    argv = ["clean", str(folder), "-o", str(tmp_path / "out"), "--engine", "kalman", "--workers", "1"]
+    assert main([*argv, "--unit", "cm"]) == 0
+    assert main([*argv, "--resume"]) == 2  # a folder cleaned with another unit
+    assert "--unit 1, not --engine 'kalman'" in capsys.readouterr().err
+    assert main([*argv, "--unit", "cm", "--resume"]) == 0

@@ -108,19 +108,21 @@ def clean_file(
     mask: str | None = None,
     keep_reference: bool = False,
     fill_suspects: bool = False,
+    unit_cm: float | None = None,
 ) -> TakeReport:
     """Clean the take ``source`` with ``engine`` and write it to ``output`` as BVH
     (atomically). Its mask is ``mask``, else the ``SOURCE.mask.json`` sidecar if there is
     one; a T-pose reference frame 0 is written back as it is unless ``keep_reference``;
     with ``fill_suspects`` the samples ``workbench inspect`` flags as bad data
-    (:func:`workbench.data.inspection.suspects_missing`) are cleaned as gaps.
+    (:func:`workbench.data.inspection.suspects_missing`) are cleaned as gaps; ``unit_cm``
+    overrides the take's guessed unit (:func:`workbench.io.read_motion`).
     Raises what reading and cleaning raise (MotionFileError, EngineError, ...)."""
     from .data import has_reference_frame
     from .io import read_motion, write_bvh
     from .io.mask import observed_take, take_mask
 
     source, output = Path(source), Path(output)
-    motion = read_motion(source)
+    motion = read_motion(source, unit_cm)
     notes = [note] if (note := _frame_time_note(source, motion)) else []
     observed, mask_path = take_mask(source, motion.skeleton, motion.n_frames, mask)
     if mask_path and not mask:
@@ -236,7 +238,13 @@ def one_thread():
 
 
 def clean_task(
-    spec: str, mapping: str | None, source: str, output: str, keep_reference: bool, fill_suspects: bool = False
+    spec: str,
+    mapping: str | None,
+    source: str,
+    output: str,
+    keep_reference: bool,
+    fill_suspects: bool = False,
+    unit_cm: float | None = None,
 ) -> TakeReport:
     """One take, on a worker, with one thread: its report, with the reason as ``error``
     when it failed (a bad file, a skeleton the engine refuses, or a bug)."""
@@ -249,7 +257,7 @@ def clean_task(
                 stamp = take_stamp(Path(source))
             except OSError:  # (clean_file says what is wrong with it)
                 stamp = None
-            report = clean_file(engine, Path(source), Path(output), None, keep_reference, fill_suspects)
+            report = clean_file(engine, Path(source), Path(output), None, keep_reference, fill_suspects, unit_cm)
             return replace(report, stamp=stamp)
     except Exception as err:  # reported with the others at the end, never raised on the worker
         return TakeReport(Path(source), Path(output), error=describe(err))
@@ -376,6 +384,8 @@ def _settings_text(settings: dict) -> str:
     """A record's settings as the options that give them."""
     parts = [f"--engine {settings.get('engine')!r}"]
     parts += [f"--{name.replace('_', '-')}" for name in ("keep_reference", "fill_suspects") if settings.get(name)]
+    if settings.get("unit_cm"):
+        parts.append(f"--unit {settings['unit_cm']:g}")
     if settings.get("mapping"):
         parts.append(f"--mapping pinning {', '.join(f'{k}={v}' for k, v in settings['mapping'].items())}")
     return " ".join(parts)
@@ -433,13 +443,14 @@ def clean_library(
     scheduler: str | None = None,
     record: FolderRecord | None = None,
     on_report: Callable[[TakeReport], None] | None = None,
+    unit_cm: float | None = None,
 ) -> list[TakeReport]:
     """Clean every (source, output) of ``jobs`` with the engine ``spec`` on Dask
     distributed: a local cluster of ``workers`` processes (default: the machine's
     cores), or the cluster at ``scheduler``. ``record``: the output folder's, where each
     take written is recorded; opened with ``resume``, the takes it holds as done are
     skipped. ``on_report`` sees each take's report as it arrives (skipped ones first);
-    ``keep_reference`` and ``fill_suspects``: as :func:`clean_file`'s. Returns the
+    ``keep_reference``, ``fill_suspects`` and ``unit_cm``: as :func:`clean_file`'s. Returns the
     reports, in ``jobs``' order. Interrupting it (KeyboardInterrupt) cancels the takes
     not done and re-raises."""
     reports: dict[Path, TakeReport] = {}
@@ -481,6 +492,7 @@ def clean_library(
                     os.path.abspath(o),
                     keep_reference,
                     fill_suspects,
+                    unit_cm,
                     pure=False,
                 )
                 for s, o in todo

@@ -147,10 +147,10 @@ def cmd_engines(args) -> int:
 
 
 # -- corrupt / clean --------------------------------------------------------------------
-def _read(path: str):
+def _read(path: str, unit_cm: float | None = None):
     from .io import read_motion
 
-    return read_motion(path)
+    return read_motion(path, unit_cm)
 
 
 def cmd_skeleton(args) -> int:
@@ -158,7 +158,7 @@ def cmd_skeleton(args) -> int:
     from .core.upright import up_turn
     from .engine.view import body_skeleton
 
-    motion = _read(args.take)
+    motion = _read(args.take, args.unit)
     s = motion.skeleton
     overrides = _pins(args)
     print(
@@ -174,7 +174,7 @@ def cmd_skeleton(args) -> int:
     turn = up_turn(motion, overrides)
     up = "+Y" if turn is None else "".join(f"{'+' if v > 0 else '-'}{a}" for a, v in zip("XYZ", turn[1]) if v)
     print(
-        f"unit: {s.unit_cm:g} cm; up: {up}"
+        f"unit: {s.unit_cm:g} cm{' (--unit)' if args.unit is not None else ''}; up: {up}"
         + ("" if turn is None else " (turned onto +Y for the trained engines and the app)")
     )
     return 0
@@ -207,7 +207,7 @@ def cmd_inspect(args) -> int:
     from .data.inspection import FILL_REASONS, inspect_motion
     from .io.mask import observed_take, take_mask
 
-    recorded = _read(args.take)
+    recorded = _read(args.take, args.unit)
     motion = without_reference_frame(recorded)
     dropped = recorded.n_frames - motion.n_frames
     observed, mask = take_mask(args.take, recorded.skeleton, recorded.n_frames, args.mask)  # the file's frames
@@ -294,7 +294,7 @@ def cmd_corrupt(args) -> int:
     from .io.atomic import atomic_path
     from .io.mask import sidecar_path, write_mask
 
-    recorded = _read(args.input)
+    recorded = _read(args.input, args.unit)
     motion = recorded if args.keep_reference else without_reference_frame(recorded)
     if motion.n_frames < recorded.n_frames:
         print("note: dropped frame 0, a T-pose reference frame (--keep-reference keeps it)", file=sys.stderr)
@@ -431,7 +431,7 @@ def cmd_clean(args) -> int:
             )
         backup = _back_up(source) if args.in_place else None
         try:
-            report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects)
+            report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects, args.unit)
         except BaseException:  # the take is as it was: no backup of it is left to mislead a later run
             if backup is not None:
                 backup.unlink()
@@ -474,6 +474,8 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
     settings = {"engine": spec, "keep_reference": args.keep_reference, "mapping": mapping}
     if args.fill_suspects:  # only when set: a folder cleaned before the option existed still resumes
         settings["fill_suspects"] = True
+    if args.unit is not None:
+        settings["unit_cm"] = args.unit
     try:
         record = FolderRecord(Path(args.output), settings, args.resume)
     except ValueError as err:
@@ -510,6 +512,7 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
             args.scheduler,
             record,
             on_report,
+            unit_cm=args.unit,
         )
     except KeyboardInterrupt:
         if bar is not None:
@@ -985,6 +988,23 @@ def _whole_number(least: int):
     return parse
 
 
+#: the length units ``--unit`` names, in cm
+UNITS_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "in": 2.54, "cmu": 5.64}
+
+
+def _unit(text: str) -> float:
+    """An argparse type: a length unit's size in cm, by name (:data:`UNITS_CM`) or as a positive number."""
+    if text.lower() in UNITS_CM:
+        return UNITS_CM[text.lower()]
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"want {', '.join(UNITS_CM)} or the unit's size in cm, got {text!r}")
+    return value
+
+
 def _positive_number(text: str) -> float:
     """An argparse type: a finite number above 0."""
     try:
@@ -1016,6 +1036,15 @@ def build_parser() -> argparse.ArgumentParser:
             "(`workbench skeleton TAKE --mapping FILE` shows what it maps)",
         )
 
+    def unit_opt(sp):
+        sp.add_argument(
+            "--unit",
+            type=_unit,
+            metavar="UNIT",
+            help="the take's length unit, where the one its rest pose's height suggests is wrong: mm, cm, m, in, "
+            "cmu (CMU's 5.64 cm) or a unit's size in cm",
+        )
+
     def clip_options(sp, default_split: str):
         """The catalogue clips and seeds a benchmark runs on."""
         sp.add_argument(
@@ -1042,12 +1071,14 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("skeleton", help="a take's skeleton and the canonical humanoid joints found on it")
     sp.add_argument("take", help="a BVH/AMC take")
     mapping_opt(sp)
+    unit_opt(sp)
     sp.set_defaults(func=cmd_skeleton)
 
     sp = sub.add_parser("inspect", help="which frames of a take (no ground truth needed) look broken, and why")
     sp.add_argument("take", nargs="?", help="a BVH/AMC take")
     sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
     mapping_opt(sp)
+    unit_opt(sp)
     sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: TAKE.mask.json if present)")
     sp.add_argument(
         "--engine",
@@ -1070,6 +1101,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--corrupt", required=True, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01")
     sp.add_argument("--seed", type=_whole_number(0), default=0)
     sp.add_argument("--keep-reference", action="store_true", help="keep a T-pose frame 0")
+    unit_opt(sp)
     sp.set_defaults(func=cmd_corrupt)
 
     sp = sub.add_parser("clean", help="clean a take (or a folder of takes) with an engine and write BVH")
@@ -1096,7 +1128,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "--resume",
         action="store_true",
-        help="a folder: skip the takes whose cleaned file is there and newer than the take (same engine and options)",
+        help="a folder: skip the takes whose cleaned file is the one the folder's record says was cleaned from the "
+        "take and its mask as they are now (same engine and options)",
     )
     sp.add_argument(
         "--keep-reference",
@@ -1110,6 +1143,7 @@ def build_parser() -> argparse.ArgumentParser:
         "the engine fills them instead of trusting them",
     )
     mapping_opt(sp)
+    unit_opt(sp)
     sp.set_defaults(func=cmd_clean)
 
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")

@@ -10,14 +10,16 @@ from .errors import MotionFileError, OutputFileError
 MOTION_SUFFIXES = (".bvh", ".amc")
 
 
-def read_motion(path: str | Path) -> Motion:
-    """Read a BVH file, or a CMU AMC file (its ASF skeleton beside it)."""
+def read_motion(path: str | Path, unit_cm: float | None = None) -> Motion:
+    """Read a BVH file, or a CMU AMC file (its ASF skeleton beside it); ``unit_cm``: the
+    size of its length unit in cm, where the one guessed from its rest pose is wrong."""
     path = Path(path)
     if path.suffix.lower() == ".amc":
         from .asfamc import read_amc
 
-        return read_amc(path)
-    return read_bvh(path)
+        motion = read_amc(path)
+        return motion if unit_cm is None else motion.replace(skeleton=motion.skeleton.replace(unit_cm=unit_cm))
+    return read_bvh(path, unit_cm=unit_cm)
 
 
 __all__ = ["read_bvh", "write_bvh", "read_motion", "MotionFileError", "OutputFileError", "MOTION_SUFFIXES"]
