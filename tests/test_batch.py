@@ -247,8 +247,9 @@ def test_a_take_at_1_or_1200_frames_a_second_is_cleaned_with_a_note_on_its_frame
     (note,) = report.notes
     assert "runs at 1 fps (Frame Time 1 s), far below" in note and "mend that line" in note and "4,800 frames" in note
     write_bvh(take, walk.replace(fps=1200.0))  # a digit too many: 0.00083333
-    (note,) = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes
+    note, *more = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes
     assert "runs at 1200 fps" in note and "far above" in note and "to 4 frames" in note
+    assert all("jump faster than a body can" in n for n in more)  # ten times too fast, the walk is
     write_bvh(take, walk)
     assert batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes == ()
 
@@ -330,3 +331,29 @@ def test_an_amc_take_is_cleaned_again_when_its_asf_skeleton_changes(tmp_path, da
     assert record.up_to_date(takes / amc.name, output)
     (takes / asf.name).write_text((takes / asf.name).read_text().replace("\n", "\n ", 1))  # an edit
     assert not record.up_to_date(takes / amc.name, output)
+
+
+def test_clean_says_where_a_take_has_broken_frames_and_what_a_robust_engine_set_aside(embedded_root, tmp_path):
+    """A network trusts broken frames and spreads them over the take; a robust engine
+    replaces what it takes for outliers, on a clean take fast motion: both are said."""
+    from workbench.corruption import parse_corruption
+    from workbench.data import find_clip
+    from workbench.io import write_bvh
+    from workbench.registry import create
+
+    walk = find_clip("cmu/walk/35_31", embedded_root).load().slice(1, 300)
+    channels = walk.channels.copy()
+    channels[100:103, 0] += 20000.0  # the body a kilometre off for three frames (CMU units)
+    take = tmp_path / "broken.bvh"
+    write_bvh(take, walk.with_channels(channels))
+    (note,) = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes
+    assert note.startswith("3 frames (from 100) jump faster than a body can") and "--fill-suspects" in note
+    assert not any(
+        "jump faster" in n
+        for n in batch.clean_file(create("kalman"), take, tmp_path / "o.bvh", fill_suspects=True).notes
+    )
+    write_bvh(take, parse_corruption("outliers:0.05").apply(walk, 0).motion)
+    notes = batch.clean_file(create("mssa"), take, tmp_path / "out.bvh").notes
+    assert any(n.startswith("mssa set aside") and "`robust=false` keeps it" in n for n in notes)
+    write_bvh(take, walk)
+    assert batch.clean_file(create("mssa"), take, tmp_path / "out.bvh").notes == ()

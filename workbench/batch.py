@@ -164,10 +164,16 @@ def clean_file(
             f"({', '.join(FILL_REASONS)}) cleaned as gaps"
         )
         del before
+    elif (broken := _broken_frames(observation)) is not None:
+        notes.append(broken)
     del motion  # the observation holds the take: a long take's 50 MB are not kept twice
     t0 = time.perf_counter()
-    cleaned = engine.clean(observation).motion
+    result = engine.clean(observation)
     seconds = time.perf_counter() - t0
+    cleaned = result.motion
+    if (rejected := _rejected_note(result, observation, engine.spec_used_ or engine.spec)) is not None:
+        notes.append(rejected)
+    del result
     if reference is not None:
         cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
     _remove_stale_temporaries(output)
@@ -181,6 +187,52 @@ def clean_file(
         engine.spec_used_ or engine.spec,
         engine.weights_used_,
         tuple(notes),
+    )
+
+
+#: the share of a take's observed samples a robust engine may set aside before ``clean`` says so
+REJECTED_SHARE_NOTED = 0.01
+
+
+def _broken_frames(observation) -> str | None:
+    """A note where the body jumps faster than a body can (``workbench inspect``'s ``jump``
+    rule, the one cheap enough for every clean): an engine that trusts such frames spreads
+    them over the take; else None."""
+    from .data.inspection import RULES
+
+    flags = RULES["jump"](observation.bridged() if observation.has_gaps else observation.motion)[0]
+    frames = np.flatnonzero((flags & observation.observed).any(axis=1))
+    if not frames.size:
+        return None
+    return (
+        f"{frames.size} frames (from {frames[0]}) jump faster than a body can: broken frames an engine trusts as "
+        "observed, which a network spreads over the take; `workbench inspect` shows them and --fill-suspects "
+        "cleans them as gaps"
+    )
+
+
+def _rejected_note(result, observation, spec: str) -> str | None:
+    """A note where a robust engine set aside more than :data:`REJECTED_SHARE_NOTED` of the
+    observed samples as outliers (``robust_weight`` below 0.5): on a clean take that is
+    motion faster than its bases hold, which it then smooths away; else None."""
+    weight = result.diagnostics.get("robust_weight")
+    if weight is None:
+        return None
+    weight = np.asarray(weight)
+    if weight.shape == observation.motion.channels.shape:
+        seen = observation.channel_observed
+    elif observation.observed.all():  # (over the engine's own channels: nothing is missing there either)
+        seen = np.ones(weight.shape, bool)
+    else:
+        return None
+    seen = seen & (weight > 0).any(axis=0)  # the channels it weighs (not those it leaves out, weighed 0 throughout)
+    rejected = int(((weight < 0.5) & seen).sum())
+    if rejected <= REJECTED_SHARE_NOTED * max(int(seen.sum()), 1):
+        return None
+    return (
+        f"{spec} set aside {rejected} of the observed samples ({100 * rejected / seen.sum():.1f} %) as outliers and "
+        "replaced them; on a take with no outliers that is motion its bases do not hold (a kick, a dance), smoothed "
+        "away: `robust=false` keeps it"
     )
 
 

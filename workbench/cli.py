@@ -174,10 +174,21 @@ def cmd_skeleton(args) -> int:
     turn = up_turn(motion, overrides)
     up = "+Y" if turn is None else "".join(f"{'+' if v > 0 else '-'}{a}" for a, v in zip("XYZ", turn[1]) if v)
     print(
-        f"unit: {s.unit_cm:g} cm{' (--unit)' if args.unit is not None else ''}; up: {up}"
+        f"unit: {s.unit_cm:g} cm{_unit_source(s, args.unit)}; up: {up}"
         + ("" if turn is None else " (turned onto +Y for the trained engines and the app)")
     )
     return 0
+
+
+def _unit_source(skeleton, given: float | None) -> str:
+    """How a take's unit was found, where it was not from its rest pose's height."""
+    from .core.skeleton import fitting_unit_cm
+
+    if given is not None:
+        return " (--unit)"
+    if fitting_unit_cm(skeleton) is None:
+        return " (no unit makes the rest pose 120-220 cm tall: cm is a guess; --unit says it)"
+    return ""
 
 
 def _pins(args) -> dict[str, str | None] | None:

@@ -246,15 +246,19 @@ class Skeleton:
 
 
 def guess_unit_cm(skeleton: Skeleton) -> float:
-    """Guess the unit from the rest-pose height: the unit that makes it 120-220 cm, the
-    height measured along Y, else along the axis the rest pose is longest on (a rest pose
-    standing on Z, as some exporters write it; :mod:`workbench.core.upright`).
+    """Guess the unit from the rest-pose height: :func:`fitting_unit_cm`, else 1.0
+    (centimetres)."""
+    fitting = fitting_unit_cm(skeleton)
+    return 1.0 if fitting is None else fitting
 
-    Falls back to 1.0 (centimetres) when none fits.
-    """
+
+def fitting_unit_cm(skeleton: Skeleton) -> float | None:
+    """The known unit that makes the rest pose 120-220 cm tall, the height measured along
+    Y, else along the axis the rest pose is longest on (a rest pose standing on Z, as some
+    exporters write it; :mod:`workbench.core.upright`); None when none does."""
     extents = skeleton.rest_extents()
     for height in (extents[1], extents.max()):
         for unit_cm, _name in _KNOWN_UNITS_CM:
             if 120.0 <= height * unit_cm <= 220.0:
                 return unit_cm
-    return 1.0
+    return None
