@@ -10,6 +10,7 @@ import pytest
 from workbench.cli import main, split_engine_specs
 from workbench.io import read_bvh
 from workbench.io.mask import read_mask
+from workbench.testing.takes import chain_bvh
 
 
 def test_split_engine_specs():
@@ -682,6 +683,12 @@ def test_a_take_s_unit_can_be_given_where_its_rest_pose_guesses_wrong(tmp_path, 
     assert "unit: 5.64 cm; up" in capsys.readouterr().out
     assert main(["skeleton", str(take), "--unit", "m"]) == 0
     assert "unit: 100 cm (--unit); up" in capsys.readouterr().out
+    giant = tmp_path / "giant.bvh"  # 300 units tall: no unit makes it a body
+    giant.write_text(chain_bvh(2, bone=150.0))
+    main(["skeleton", str(giant)])  # (refused as a humanoid, after its unit)
+    assert "unit: 1 cm (no unit makes the rest pose 120-220 cm tall: cm is a guess; --unit says it)" in (
+        capsys.readouterr().out
+    )
     assert main(["inspect", str(take), "--unit", "2.5"]) == 0
     capsys.readouterr()
     with pytest.raises(SystemExit):

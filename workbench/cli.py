@@ -169,6 +169,7 @@ def cmd_skeleton(args) -> int:
         mapping = map_humanoid(s, overrides)
     except HumanoidError:  # what was found, then why it is refused
         print(map_humanoid(s, overrides, checked=False).describe())
+        print(f"unit: {s.unit_cm:g} cm{_unit_source(s, args.unit)}")
         raise
     print(mapping.describe())
     turn = up_turn(motion, overrides)
