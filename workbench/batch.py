@@ -200,7 +200,7 @@ def _broken_frames(observation) -> str | None:
     them over the take; else None."""
     from .data.inspection import RULES
 
-    flags = RULES["jump"](observation.bridged() if observation.has_gaps else observation.motion)[0]
+    flags = RULES["jump"](observation.motion)[0]  # (a missing root, NaN, is not fast: no bridging needed)
     frames = np.flatnonzero((flags & observation.observed).any(axis=1))
     if not frames.size:
         return None
