@@ -31,6 +31,7 @@ import scipy.fft as sfft
 from ..core.channels import forward_fill, interpolate_gaps, rewrap_deg, unwrap_deg
 from ..core.motion import Observation, angle_slice
 from ..core.rotations import alternative_euler, wrap_deg
+from .smoothing import measurement_variance
 
 __all__ = [
     "EulerFlips",
@@ -119,11 +120,11 @@ def euler_flips(observation: Observation) -> EulerFlips | None:
     triples = angles.reshape(F, -1, 3)[:, candidates].reshape(F, -1)
     filled = forward_fill(triples, np.repeat(seen, 3, axis=1)).reshape(F, -1, 3)  # a gap: no jump inside it
     # a joint as noisy as a lock's two triples are near is left as it is (noise would flip
-    # it): its noise from the second differences of observed frames, robust to the jumps
-    runs = seen[:-2] & seen[1:-1] & seen[2:]
-    jerk = np.abs(np.diff(filled, 2, axis=0))
-    middle = [np.median(jerk[run, k], axis=0).max() if run.any() else np.inf for k, run in enumerate(runs.T)]
-    quiet = np.array(middle) / (0.6745 * np.sqrt(6.0)) <= NOISE_LIMIT_DEG  # white noise's std from that median
+    # it), and so is one with no three frames observed in a row to measure its noise on;
+    # the measure is robust (a median) to the jumps themselves
+    noise = measurement_variance(filled.reshape(F, -1), np.repeat(seen, 3, axis=1)).reshape(-1, 3)
+    runs = (seen[:-2] & seen[1:-1] & seen[2:]).any(axis=0)
+    quiet = runs & (np.sqrt(noise.max(axis=1)) <= NOISE_LIMIT_DEG)
     if not quiet.any():
         return None
     candidates, filled, seen = candidates[quiet], filled[:, quiet], seen[:, quiet]
