@@ -164,20 +164,18 @@ def cmd_skeleton(args) -> int:
     print(
         f"{args.take}: {s.n_joints} joints, root {s.names[0]!r}, body root {s.names[s.body_root]!r}, {motion.fps:g} fps"
     )
+    unit = f"unit: {s.unit_cm:g} cm{_unit_source(s, args.unit)}"
     try:  # refused as the engines refuse it, on the body view (no reference node above the body root)
         map_humanoid(body_skeleton(s), overrides)
         mapping = map_humanoid(s, overrides)
     except HumanoidError:  # what was found, then why it is refused
         print(map_humanoid(s, overrides, checked=False).describe())
-        print(f"unit: {s.unit_cm:g} cm{_unit_source(s, args.unit)}")
+        print(unit)
         raise
     print(mapping.describe())
     turn = up_turn(motion, overrides)
     up = "+Y" if turn is None else "".join(f"{'+' if v > 0 else '-'}{a}" for a, v in zip("XYZ", turn[1]) if v)
-    print(
-        f"unit: {s.unit_cm:g} cm{_unit_source(s, args.unit)}; up: {up}"
-        + ("" if turn is None else " (turned onto +Y for the trained engines and the app)")
-    )
+    print(f"{unit}; up: {up}" + ("" if turn is None else " (turned onto +Y for the trained engines and the app)"))
     return 0
 
 
@@ -1000,21 +998,17 @@ def _whole_number(least: int):
     return parse
 
 
-#: the length units ``--unit`` names, in cm
-UNITS_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "in": 2.54, "cmu": 5.64}
-
-
 def _unit(text: str) -> float:
-    """An argparse type: a length unit's size in cm, by name (:data:`UNITS_CM`) or as a positive number."""
+    """An argparse type: a length unit's size in cm, by name
+    (:data:`workbench.core.skeleton.UNITS_CM`) or as a positive number."""
+    from .core.skeleton import UNITS_CM
+
     if text.lower() in UNITS_CM:
         return UNITS_CM[text.lower()]
     try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"want {', '.join(UNITS_CM)} or the unit's size in cm, got {text!r}")
-    return value
+        return _positive_number(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"want {', '.join(UNITS_CM)} or the unit's size in cm, got {text!r}") from None
 
 
 def _positive_number(text: str) -> float:

@@ -27,9 +27,9 @@ from ..errors import NameNotFoundError
 ROTATION_CHANNELS = ("Xrotation", "Yrotation", "Zrotation")
 POSITION_CHANNELS = ("Xposition", "Yposition", "Zposition")
 
-# Rest-pose height (in file units) -> unit size in cm, for files that do not say.
-# A standing adult is 150-200 cm tall; the table names the unit that makes it so.
-_KNOWN_UNITS_CM = ((5.64, "CMU cgspeed units"), (1.0, "cm"), (2.54, "inches"), (100.0, "m"), (0.1, "mm"))
+#: the length units of motion files, by name, in cm (``cmu``: the CMU cgspeed conversion's);
+#: the heights of 120-220 cm in them do not overlap, so :func:`fitting_unit_cm` finds one at most
+UNITS_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "in": 2.54, "cmu": 5.64}
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,7 +258,7 @@ def fitting_unit_cm(skeleton: Skeleton) -> float | None:
     exporters write it; :mod:`workbench.core.upright`); None when none does."""
     extents = skeleton.rest_extents()
     for height in (extents[1], extents.max()):
-        for unit_cm, _name in _KNOWN_UNITS_CM:
+        for unit_cm in UNITS_CM.values():
             if 120.0 <= height * unit_cm <= 220.0:
                 return unit_cm
     return None
