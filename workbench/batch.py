@@ -221,7 +221,7 @@ def _rejected_note(result, observation, spec: str) -> str | None:
     weight = np.asarray(weight)
     if weight.shape == observation.motion.channels.shape:
         seen = observation.channel_observed
-    elif observation.observed.all():  # (over the engine's own channels: nothing is missing there either)
+    elif observation.observed.all():  # over joint positions (F, 3J; mssa's position mode): all observed too
         seen = np.ones(weight.shape, bool)
     else:
         return None
