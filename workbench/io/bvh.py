@@ -252,8 +252,7 @@ def _parse_motion(
     if np.isinf(values).any():
         n = int(np.argwhere(np.isinf(values))[0, 0])
         raise MotionFileError(path, f"frame {n}: infinite value", start + 3 + n)
-    digits = ft_text.lower().split("e")[0].partition(".")[2]
-    decimals = len(digits) if "e" not in ft_text.lower() else None  # as printed: 0.0417 to 4 decimals
+    decimals = None if "e" in ft_text.lower() else len(ft_text.partition(".")[2])  # as printed: 0.0417 to 4
     return fps_from_frame_time(frame_time, decimals), values
 
 
