@@ -25,19 +25,19 @@ network completes the image of a take and IK turns it back into angles (the pape
    second difference (:func:`workbench.engine.smoothing.measurement_variance`, ``robust=False``: angle noise
    moves positions with heavy tails, which a median misses). Holes of L < ``hole_blend_frames`` frames with the
    root unknown move towards the smoother's fill by 1 - L / ``hole_blend_frames`` (ours: the network was trained
-   for long gaps). IK's reference (:func:`workbench.engine.smoothing.ik_reference` with ``anchor``, else the
-   bridged observation) gives the twist, the leaves and the angles of joints within ``short_lever_cm`` of all
-   their children (mm of error turn a 3-cm lever by tens of degrees); with ``anchor``, under angle noise, also
-   those of joints aimed within ``angle_lever_cm`` (feet, chest, arms); the other aimed joints weigh it against
-   their aim by the noise in each. ``anchor=false,output_sigma_frames=0``: the paper's output;
-   ``keep_observed``: observed samples come back exactly (fills, does not denoise).
+   for long gaps); longer ones towards the linear fill as far as a trial beside them asks (``trial_holes``, ours).
+   IK's reference (:func:`workbench.engine.smoothing.ik_reference` with ``anchor``, else the bridged observation)
+   gives the twist, the leaves and the angles of joints within ``short_lever_cm`` of all their children (mm of
+   error turn a 3-cm lever by tens of degrees); with ``anchor``, under angle noise, also those of joints aimed
+   within ``angle_lever_cm`` (feet, chest, arms); the other aimed joints weigh it against their aim by the noise
+   in each. ``anchor=false,output_sigma_frames=0``: the paper's output; ``keep_observed``: observed samples come
+   back exactly (fills, does not denoise).
 
-Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters
-them as known entries (in a first pass's body frame where the root is missing); the network's miss
-there is added in full, so they are met as far as the bone lengths allow.
-
-Every noise estimate above is measured on the take's captured frames (a 30-fps take is seen at 120
-fps: :attr:`workbench.core.motion.Observation.capture_step`). History and results: docs/engines/cae.md.
+Constraints (§4.2): ``clean(..., constraints={joint: (frames (n,), world positions (n, 3))})`` enters them as
+known entries (in a first pass's body frame where the root is missing); the network's miss there is added in
+full, so they are met as far as the bone lengths allow. Every noise estimate above is measured on the take's
+captured frames (a 30-fps take is seen at 120 fps: :attr:`workbench.core.motion.Observation.capture_step`).
+History and results: docs/engines/cae.md.
 """
 
 from __future__ import annotations
@@ -66,6 +66,8 @@ from workbench.engine.view import frame_times, resample
 
 from .bodies import CANONICAL_LAYOUT, CanonicalJoints, OwnJoints
 from .representation import (
+    HEAD_ROWS,
+    TAIL_ROWS,
     Layout,
     decode,
     encode,
@@ -89,6 +91,10 @@ VIEWS = ((False, False), (True, False), (False, True), (True, True))
 Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
 #: with ``anchor``, the smoother's share of the root's path across a gap inside the take: the network drifts
 SMOOTHER_PATH_SHARE = 0.75
+#: seconds of the take around a long hole and its trial block that a trial completes (``trial_holes``)
+TRIAL_CONTEXT_S = 2.0
+#: how much nearer a trial's mix must put the hidden stretch than the network's fill alone
+TRIAL_MARGIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -132,7 +138,11 @@ class TrainingParams:
     ``miss_fade_s``: the network's miss bridged across a hole fades towards its
     mean over the row's known frames by exp(-d / this) at d seconds from the nearest
     known frame (0: no fading;
-    :meth:`ConvAutoencoderEngine.correction`).
+    :meth:`ConvAutoencoderEngine.correction`). ``trial_holes``: with ``anchor``, the
+    network's fill of each hole of at least ``hole_blend_frames`` frames where the root is
+    unknown is tried against linear interpolation on a stretch of the take hidden beside
+    it, and moves towards the linear fill where that fills the trial better
+    (:meth:`ConvAutoencoderEngine.trial_share`).
     ``init_weights``: a weights folder of this engine to train on from (its network and its
     image normalisation, the layout and network rate the same; fine-tuning, or a run
     continued), instead of a fresh network (empty: fresh).
@@ -172,6 +182,7 @@ class TrainingParams:
     hole_blend_frames: int = 60
     output_sigma_frames: float = 1.5
     miss_fade_s: float = 1.0
+    trial_holes: bool = True
 
     def __post_init__(self) -> None:
         for name in ("epochs", "frames_per_epoch", "window_frames", "batch_size"):
@@ -544,6 +555,7 @@ class ConvAutoencoderEngine(Engine):
         if self.params.anchor:
             ground, theta = anchored_trajectory(ground, theta, known[:, 0], step)
         image, mask = encode(layout, image_positions, theta, ground), image_mask(layout, known)
+        body_frame = theta, ground  # the image's, for a trial's linear fill
         views = self.views_used()
         mirror = mirror_rows(layout, imaging.names) if views > 1 else None
         net_out = self.complete(image, mask, mirror, views)
@@ -563,10 +575,13 @@ class ConvAutoencoderEngine(Engine):
         raw = decode(layout, net_out, ground, theta)
         raw_positions = imaging.targets(raw, P)  # the take's joints where the network put them
         del P, image_positions
-        if exact.any() or self.params.anchor:
-            out = out + self.correction(image, mask, out, exact, step)
-            if self.params.anchor and self.params.hole_blend_frames:
-                out = self.blend_short_holes(out, mask, step)
+        out = self.anchored(image, mask, out, exact, step)
+        if self.params.trial_holes and self.params.anchor and not constraints:
+            share, long_holes = self.trial_share(observation, imaging, image, mask, exact, body_frame, mirror, views)
+            if share < 1.0:
+                body = np.ix_(long_holes, np.arange(image.shape[1] - TAIL_ROWS))  # the root's path is set above
+                out = out.copy()
+                out[body] = image[body] + share * (out[body] - image[body])
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         del image, net_out, out
         root, angles, translations = imaging.solve(target, ik_root, ik_angles, **ik_options)
@@ -577,6 +592,99 @@ class ConvAutoencoderEngine(Engine):
             given = observation.channel_observed
             channels[given] = observation.motion.channels[given]
         return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw_positions})
+
+    def anchored(
+        self, image: np.ndarray, mask: np.ndarray, out: np.ndarray, exact: np.ndarray, step: float
+    ) -> np.ndarray:
+        """The smoothed completion ``out`` (F, H) of ``image`` known where ``mask``, with the
+        :meth:`correction` added and short holes blended (:meth:`blend_short_holes`) where
+        ``anchor`` asks for them; ``out`` itself where nothing is added."""
+        if exact.any() or self.params.anchor:
+            out = out + self.correction(image, mask, out, exact, step)
+            if self.params.anchor and self.params.hole_blend_frames:
+                out = self.blend_short_holes(out, mask, step)
+        return out
+
+    def trial_share(
+        self,
+        observation: Observation,
+        imaging: OwnJoints | CanonicalJoints,
+        image: np.ndarray,
+        mask: np.ndarray,
+        exact: np.ndarray,
+        body_frame: tuple[np.ndarray, np.ndarray],
+        mirror: tuple[np.ndarray, np.ndarray] | None,
+        views: int,
+    ) -> tuple[float, np.ndarray]:
+        """(share, long holes (F,) bool): how much of the network's fill to keep, against
+        the linear fill already in ``image`` (its holes hold the linearly interpolated angles'
+        positions), in the frames of the long holes, those where the root is unknown for at
+        least ``hole_blend_frames`` frames inside the take. Beside each long hole (on its
+        longer side, a quarter of its length away) an observed stretch as long is hidden
+        (:func:`trial_blocks`), and the take around both (:data:`TRIAL_CONTEXT_S` each side)
+        completed again as a clean completes it; the share is the one of 0, 0.1, ..., 1
+        whose mix of the network's and the linear fill puts the body's joints nearest the
+        hidden stretch's known positions (mean distance in the image), where it beats the
+        network's alone by :data:`TRIAL_MARGIN`; else 1. ``body_frame``: the image's
+        (headings (F,), floor points (F, 3)). Ours: ``docs/engines/cae.md``, *Trial holes*."""
+        F = image.shape[0]
+        root_known = mask[:, 0]
+        length = hole_length(~root_known[:, None])[:, 0]
+        long_holes = ~root_known & (length >= max(self.params.hole_blend_frames, 1)) & np.isfinite(length)
+        blocks = trial_blocks(long_holes, root_known)
+        if not blocks:
+            return 1.0, long_holes
+        context = round(TRIAL_CONTEXT_S * self.fps_)
+        rows = slice(HEAD_ROWS, image.shape[1] - TAIL_ROWS)
+        shares = np.linspace(0.0, 1.0, 11)
+        errors, counts = np.zeros(len(shares)), 0
+        for lo, hi, trial in blocks:
+            lo, hi = max(lo - context, 0), min(hi + context, F)
+            hidden = np.zeros(hi - lo, bool)
+            hidden[trial[0] - lo : trial[1] - lo] = True
+            crop = slice(lo, hi)
+            tmask = mask[crop] & ~hidden[:, None]
+            fill = self.anchored(
+                image[crop],
+                tmask,
+                self.low_pass(self.complete(image[crop], tmask, mirror, views)),
+                exact[crop] & tmask,
+                observation.capture_step,
+            )
+            frames = np.flatnonzero(hidden)
+            part = Observation(observation.motion.slice(lo, hi), observation.observed[crop], observation.capture_step)
+            linear = self.linear_image(part, hidden, imaging, body_frame, lo)[frames]
+            truth = image[crop][frames, rows].reshape(len(frames), -1, 3)
+            known = mask[crop][frames, rows].reshape(truth.shape).all(axis=2)
+            net, lin = fill[frames, rows].reshape(truth.shape), linear[:, rows].reshape(truth.shape)
+            errors += [np.linalg.norm(lin + a * (net - lin) - truth, axis=2)[known].sum() for a in shares]
+            counts += known.sum()
+        if not counts:
+            return 1.0, long_holes
+        best = int(np.argmin(errors))
+        return (float(shares[best]) if errors[best] < (1.0 - TRIAL_MARGIN) * errors[-1] else 1.0), long_holes
+
+    def linear_image(
+        self,
+        observation: Observation,
+        hidden: np.ndarray,
+        imaging: OwnJoints | CanonicalJoints,
+        body_frame: tuple[np.ndarray, np.ndarray],
+        first: int,
+    ) -> np.ndarray:
+        """The image rows (F, H) of ``observation`` with its ``hidden`` frames (F,) missing
+        too, the angles interpolated linearly across every gap (:func:`bridge_gaps`), in the
+        take's body frame (``body_frame``'s headings and floor points from frame ``first``
+        on); the velocity rows only as :func:`.representation.encode` gives them."""
+        observed = observation.observed & ~hidden[:, None]
+        channels = observation.motion.channels.copy()
+        channels[hidden] = np.nan
+        seen = Observation(observation.motion.with_channels(channels), observed, observation.capture_step)
+        linear = bridge_gaps(seen)
+        F = observation.n_frames
+        P = joint_positions(observation.skeleton, linear[:, :3], linear[:, 3:].reshape(F, -1, 3))
+        theta, ground = body_frame
+        return encode(self.layout_, imaging.positions(P), theta[first : first + F], ground[first : first + F])
 
     def bridged_holes(self, observation: Observation, channels: np.ndarray, positions: np.ndarray) -> np.ndarray:
         """The holes (F, J) that count as observed, bridged by the constant-velocity
@@ -725,6 +833,28 @@ class ConvAutoencoderEngine(Engine):
             image[frames, rows] = turn_y(positions - ground[frames], -theta[frames])
             constrained[frames, rows] = True
         return image, mask | constrained, constrained
+
+
+def trial_blocks(long_holes: np.ndarray, root_known: np.ndarray) -> list[tuple[int, int, tuple[int, int]]]:
+    """For each run of ``long_holes`` (F,) bool, (first, end, (trial first, trial end)): the
+    frames from the hole to its trial block, a stretch as long as the hole a quarter of its
+    length (at least 2 frames) away on the side with more of the take, or on the other where
+    that does not fit, whose root is known (``root_known`` (F,)) in it and in the frame on
+    either side, and that no other trial block touches. Holes without room get none."""
+    F = len(long_holes)
+    taken = np.zeros(F, bool)
+    blocks = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], long_holes.astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):
+        n, gap = b - a, max((b - a) // 4, 2)
+        after, before = (b + gap, b + gap + n), (a - gap - n, a - gap)
+        sides = [after, before] if F - b >= a else [before, after]
+        for s, e in sides:
+            if s >= 1 and e <= F - 1 and root_known[s - 1 : e + 1].all() and not taken[s - 1 : e + 1].any():
+                taken[s:e] = True
+                blocks.append((min(a, s), max(b, e), (s, e)))
+                break
+    return blocks
 
 
 def _by_skeleton(motions: Sequence[Motion]) -> list[list[Motion]]:
