@@ -93,8 +93,8 @@ Constraints = Mapping[int, tuple[Sequence[int], np.ndarray]]
 SMOOTHER_PATH_SHARE = 0.75
 #: seconds of the take around a long hole and its trial block that a trial completes (``trial_holes``)
 TRIAL_CONTEXT_S = 2.0
-#: how much nearer a trial's mix must put the hidden stretch than the network's fill alone
-TRIAL_MARGIN = 0.05
+#: how much nearer a trial's mix must put a joint (or the body) in the hidden stretches than the network's fill alone
+TRIAL_MARGIN = 0.3
 
 
 @dataclass(frozen=True)
@@ -140,9 +140,9 @@ class TrainingParams:
     known frame (0: no fading;
     :meth:`ConvAutoencoderEngine.correction`). ``trial_holes``: with ``anchor``, the
     network's fill of each hole of at least ``hole_blend_frames`` frames where the root is
-    unknown is tried against linear interpolation on a stretch of the take hidden beside
-    it, and moves towards the linear fill where that fills the trial better
-    (:meth:`ConvAutoencoderEngine.trial_share`).
+    unknown is tried against linear interpolation on stretches of the take hidden beside
+    it, and each joint moves towards the linear fill where that fills the trial better
+    (:meth:`ConvAutoencoderEngine.trial_shares`).
     ``init_weights``: a weights folder of this engine to train on from (its network and its
     image normalisation, the layout and network rate the same; fine-tuning, or a run
     continued), instead of a fresh network (empty: fresh).
@@ -577,11 +577,15 @@ class ConvAutoencoderEngine(Engine):
         del P, image_positions
         out = self.anchored(image, mask, out, exact, step)
         if self.params.trial_holes and self.params.anchor and not constraints:
-            share, long_holes = self.trial_share(observation, imaging, image, mask, exact, body_frame, mirror, views)
-            if share < 1.0:
-                body = np.ix_(long_holes, np.arange(image.shape[1] - TAIL_ROWS))  # the root's path is set above
+            shares, turn_share, long_holes = self.trial_shares(
+                observation, imaging, image, mask, exact, body_frame, mirror, views
+            )
+            if (shares < 1.0).any():  # towards the linear fill: the body's rows, and the heading
+                body = np.ix_(long_holes, np.arange(shares.size))  # the root's path is set above
                 out = out.copy()
-                out[body] = image[body] + share * (out[body] - image[body])
+                out[body] = image[body] + shares * (out[body] - image[body])
+                linear_theta, theta = body_frame[0][long_holes], theta.copy()
+                theta[long_holes] = linear_theta + turn_share * wrap(theta[long_holes] - linear_theta)
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         del image, net_out, out
         root, angles, translations = imaging.solve(target, ik_root, ik_angles, **ik_options)
@@ -605,7 +609,7 @@ class ConvAutoencoderEngine(Engine):
                 out = self.blend_short_holes(out, mask, step)
         return out
 
-    def trial_share(
+    def trial_shares(
         self,
         observation: Observation,
         imaging: OwnJoints | CanonicalJoints,
@@ -615,54 +619,59 @@ class ConvAutoencoderEngine(Engine):
         body_frame: tuple[np.ndarray, np.ndarray],
         mirror: tuple[np.ndarray, np.ndarray] | None,
         views: int,
-    ) -> tuple[float, np.ndarray]:
-        """(share, long holes (F,) bool): how much of the network's fill to keep, against
-        the linear fill already in ``image`` (its holes hold the linearly interpolated angles'
-        positions), in the frames of the long holes, those where the root is unknown for at
-        least ``hole_blend_frames`` frames inside the take. Beside each long hole (on its
-        longer side, a quarter of its length away) an observed stretch as long is hidden
-        (:func:`trial_blocks`), and the take around both (:data:`TRIAL_CONTEXT_S` each side)
-        completed again as a clean completes it; the share is the one of 0, 0.1, ..., 1
-        whose mix of the network's and the linear fill puts the body's joints nearest the
-        hidden stretch's known positions (mean distance in the image), where it beats the
-        network's alone by :data:`TRIAL_MARGIN`; else 1. ``body_frame``: the image's
-        (headings (F,), floor points (F, 3)). Ours: ``docs/engines/cae.md``, *Trial holes*."""
-        F = image.shape[0]
+    ) -> tuple[np.ndarray, float, np.ndarray]:
+        """(shares (H - 3,), heading's share, long holes (F,) bool): how much of the network's
+        fill to keep in each of the image's body rows (the hips' height and each joint's three
+        rows) and in the heading, against the linear fill already in ``image`` (its holes hold
+        the linearly interpolated angles' positions), in the frames of the long holes, those
+        where the root is unknown for at least ``hole_blend_frames`` frames inside the take.
+        Beside each long hole observed stretches as long are hidden (:func:`trial_blocks`), and
+        the take around them (:data:`TRIAL_CONTEXT_S` each side) completed again as a clean
+        completes it. A joint's share is the one of 0, 0.1, ..., 1 whose mix of the network's
+        and the linear fill puts it nearest its known positions in the hidden stretches (mean
+        distance in the image), where that beats the network's alone by :data:`TRIAL_MARGIN`,
+        else 1; the hips' height and the heading take the share chosen so for all joints
+        together. ``body_frame``: the image's (headings (F,), floor points (F, 3)). Ours:
+        ``docs/engines/cae.md``, *Trial holes*."""
+        F, K = image.shape[0], (image.shape[1] - HEAD_ROWS - TAIL_ROWS) // 3
+        keep = np.ones(image.shape[1] - TAIL_ROWS)
         root_known = mask[:, 0]
         length = hole_length(~root_known[:, None])[:, 0]
         long_holes = ~root_known & (length >= max(self.params.hole_blend_frames, 1)) & np.isfinite(length)
         blocks = trial_blocks(long_holes, root_known)
         if not blocks:
-            return 1.0, long_holes
+            return keep, 1.0, long_holes
         context = round(TRIAL_CONTEXT_S * self.fps_)
-        rows = slice(HEAD_ROWS, image.shape[1] - TAIL_ROWS)
+        rows = slice(HEAD_ROWS, HEAD_ROWS + 3 * K)
         shares = np.linspace(0.0, 1.0, 11)
-        errors, counts = np.zeros(len(shares)), 0
+        distance = np.zeros((len(shares), K))  # summed over the hidden stretches' known positions
         for lo, hi, trial in blocks:
             lo, hi = max(lo - context, 0), min(hi + context, F)
             hidden = np.zeros(hi - lo, bool)
             hidden[trial[0] - lo : trial[1] - lo] = True
             crop = slice(lo, hi)
             tmask = mask[crop] & ~hidden[:, None]
-            fill = self.anchored(
-                image[crop],
-                tmask,
-                self.low_pass(self.complete(image[crop], tmask, mirror, views)),
-                exact[crop] & tmask,
-                observation.capture_step,
-            )
+            completed = self.low_pass(self.complete(image[crop], tmask, mirror, views))
+            fill = self.anchored(image[crop], tmask, completed, exact[crop] & tmask, observation.capture_step)
             frames = np.flatnonzero(hidden)
             part = Observation(observation.motion.slice(lo, hi), observation.observed[crop], observation.capture_step)
-            linear = self.linear_image(part, hidden, imaging, body_frame, lo)[frames]
-            truth = image[crop][frames, rows].reshape(len(frames), -1, 3)
-            known = mask[crop][frames, rows].reshape(truth.shape).all(axis=2)
-            net, lin = fill[frames, rows].reshape(truth.shape), linear[:, rows].reshape(truth.shape)
-            errors += [np.linalg.norm(lin + a * (net - lin) - truth, axis=2)[known].sum() for a in shares]
-            counts += known.sum()
-        if not counts:
-            return 1.0, long_holes
-        best = int(np.argmin(errors))
-        return (float(shares[best]) if errors[best] < (1.0 - TRIAL_MARGIN) * errors[-1] else 1.0), long_holes
+            linear = self.linear_image(part, hidden, imaging, body_frame, lo)[frames, rows].reshape(len(frames), K, 3)
+            truth = image[crop][frames, rows].reshape(len(frames), K, 3)
+            known = mask[crop][frames, rows].reshape(len(frames), K, 3).all(axis=2)
+            net = fill[frames, rows].reshape(len(frames), K, 3)
+            for i, share in enumerate(shares):
+                distance[i] += np.where(
+                    known, np.linalg.norm(linear + share * (net - linear) - truth, axis=2), 0.0
+                ).sum(0)
+
+        def chosen(d: np.ndarray) -> np.ndarray:  # d (shares, n) -> (n,)
+            best = np.argmin(d, axis=0)
+            return np.where(d[best, np.arange(d.shape[1])] < (1.0 - TRIAL_MARGIN) * d[-1], shares[best], 1.0)
+
+        whole = float(chosen(distance.sum(axis=1, keepdims=True))[0])
+        keep[:HEAD_ROWS] = whole
+        keep[rows] = np.repeat(chosen(distance), 3)
+        return keep, whole, long_holes
 
     def linear_image(
         self,
@@ -836,24 +845,21 @@ class ConvAutoencoderEngine(Engine):
 
 
 def trial_blocks(long_holes: np.ndarray, root_known: np.ndarray) -> list[tuple[int, int, tuple[int, int]]]:
-    """For each run of ``long_holes`` (F,) bool, (first, end, (trial first, trial end)): the
-    frames from the hole to its trial block, a stretch as long as the hole a quarter of its
-    length (at least 2 frames) away on the side with more of the take, or on the other where
-    that does not fit, whose root is known (``root_known`` (F,)) in it and in the frame on
-    either side, and that no other trial block touches. Holes without room get none."""
+    """For each run of ``long_holes`` (F,) bool and each side of it, (first, end, (trial
+    first, trial end)): the frames from the hole to a trial block, a stretch as long as the
+    hole a quarter of its length (at least 2 frames) away, where the root is known
+    (``root_known`` (F,)) in it and in the frame on either side and no other trial block
+    touches it; a side without room gets none."""
     F = len(long_holes)
     taken = np.zeros(F, bool)
     blocks = []
     edges = np.flatnonzero(np.diff(np.concatenate([[0], long_holes.astype(np.int8), [0]])))
     for a, b in zip(edges[::2], edges[1::2]):
         n, gap = b - a, max((b - a) // 4, 2)
-        after, before = (b + gap, b + gap + n), (a - gap - n, a - gap)
-        sides = [after, before] if F - b >= a else [before, after]
-        for s, e in sides:
+        for s, e in ((a - gap - n, a - gap), (b + gap, b + gap + n)):
             if s >= 1 and e <= F - 1 and root_known[s - 1 : e + 1].all() and not taken[s - 1 : e + 1].any():
                 taken[s:e] = True
                 blocks.append((min(a, s), max(b, e), (s, e)))
-                break
     return blocks
 
 

@@ -8,7 +8,9 @@ import pytest
 import torch
 
 from engines.cae import CAE, Holden
+from engines.cae.engine import trial_blocks
 from engines.cae.representation import (
+    TAIL_ROWS,
     Layout,
     decode,
     encode,
@@ -781,3 +783,53 @@ def test_a_long_image_predicted_a_window_at_a_time_gives_the_whole_image_s_value
         windowed = net.predict(x, max_columns=2 * net.time_reach + 320)
     assert windowed.shape == whole.shape == (3, 6, 64 * 41)
     np.testing.assert_allclose(windowed, whole, rtol=0, atol=1e-5)
+
+
+def test_trial_blocks_sit_beside_their_holes_where_the_take_is_observed():
+    """Blocks as long as the hole, a quarter of its length away (at least 2 frames), on each
+    side where the root is known in and around them."""
+    long_holes = np.zeros(100, bool)
+    long_holes[20:40] = True
+    assert trial_blocks(long_holes, ~long_holes) == [(20, 65, (45, 65))]  # no room before it
+    long_holes[:] = False
+    long_holes[50:70] = True
+    root_known = ~long_holes
+    assert trial_blocks(long_holes, root_known) == [(25, 70, (25, 45)), (50, 95, (75, 95))]
+    root_known[30] = False  # the root missing there too: after it alone
+    assert trial_blocks(long_holes, root_known) == [(50, 95, (75, 95))]
+    root_known[80] = False
+    assert trial_blocks(long_holes, root_known) == []
+
+
+def test_a_network_that_misses_the_trial_leaves_the_long_hole_to_lerp(test_clip):
+    """A network that puts every joint it must guess 20 cm off (its root's path and heading
+    right): the trial beside a 1-s hole finds linear interpolation nearer, and the hole is
+    filled as lerp fills it (to IK's accuracy); without the trial it keeps the miss."""
+    obs = parse_corruption("block:120").apply(test_clip, seed=0)
+
+    def missing_by_20(engine):
+        complete = engine.complete
+
+        def off(image, mask, *args):
+            out = complete(image, mask, *args)
+            out[:, :-TAIL_ROWS] += np.where(mask[:, :-TAIL_ROWS], 0.0, 20.0)  # not the root's path rows
+            return out
+
+        engine.complete = off
+        return engine
+
+    def gap_error(engine):
+        return metrics.gap_mpjpe_cm(test_clip, engine.clean(obs).motion, obs.observed)
+
+    lerp = _gap_error("lerp", test_clip, obs)
+    assert gap_error(missing_by_20(registry.create("cae"))) < 1.05 * lerp
+    assert gap_error(missing_by_20(registry.create("cae:trial_holes=false"))) > 2 * lerp
+
+
+def test_a_network_that_fills_the_trial_well_keeps_its_fill(test_clip):
+    """On a held-out walk the network fills the trials beside a 1-s hole better than lerp
+    for most joints, so the hole is filled about as without the trial, well below lerp."""
+    obs = parse_corruption("block:120").apply(test_clip, seed=0)
+    with_trial = _gap_error("cae", test_clip, obs)
+    assert with_trial < 1.03 * _gap_error("cae:trial_holes=false", test_clip, obs)
+    assert with_trial < 0.7 * _gap_error("lerp", test_clip, obs)
