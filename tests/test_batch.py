@@ -357,3 +357,19 @@ def test_clean_says_where_a_take_has_broken_frames_and_what_a_robust_engine_set_
     assert any(n.startswith("mssa set aside") and "`robust=false` keeps it" in n for n in notes)
     write_bvh(take, walk)
     assert batch.clean_file(create("mssa"), take, tmp_path / "out.bvh").notes == ()
+
+
+def test_clean_says_where_an_autoencoder_left_a_long_hole_partly_to_lerp(clips, tmp_path):
+    """A kick on the Daz skeleton, which no training saw, with a 1-s hole: trials beside it
+    find lerp nearer for some joints, and the note says so and how to keep the network's fill."""
+    from workbench.cli import main
+    from workbench.registry import create
+
+    kick = next(c for c in clips if c.id == "cmu-daz/kick/10_03")
+    take = tmp_path / "holed.bvh"
+    assert main(["corrupt", str(kick.path), "-o", str(take), "--corrupt", "block:1s", "--seed", "1"]) == 0
+    notes = batch.clean_file(create("cae"), take, tmp_path / "out.bvh").notes
+    assert any(n.startswith("cae filled 120 frames of long holes partly by linear") for n in notes)
+    assert not any(
+        "linear" in n for n in batch.clean_file(create("cae:trial_holes=false"), take, tmp_path / "o.bvh").notes
+    )

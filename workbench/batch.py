@@ -173,6 +173,8 @@ def clean_file(
     cleaned = result.motion
     if (rejected := _rejected_note(result, observation, engine.spec_used_ or engine.spec)) is not None:
         notes.append(rejected)
+    if (trial := _trial_note(result, engine.info.name)) is not None:
+        notes.append(trial)
     del result
     if reference is not None:
         cleaned = cleaned.with_channels(np.concatenate([reference, cleaned.channels]))
@@ -233,6 +235,21 @@ def _rejected_note(result, observation, spec: str) -> str | None:
         f"{spec} set aside {rejected} of the observed samples ({100 * rejected / seen.sum():.1f} %) as outliers and "
         "replaced them; on a take with no outliers that is motion its bases do not hold (a kick, a dance), smoothed "
         "away: `robust=false` keeps it"
+    )
+
+
+def _trial_note(result, name: str) -> str | None:
+    """A note where an autoencoder filled long holes partly by linear interpolation, as trials
+    beside them asked (its ``network_share`` diagnostic below 1); else None."""
+    share = result.diagnostics.get("network_share")
+    if share is None or not (np.asarray(share) < 1.0).any():
+        return None
+    moved = np.asarray(share) < 1.0
+    return (
+        f"{name} filled {int(moved.sum())} frames of long holes partly by linear interpolation (its network's "
+        f"fill kept at {np.mean(np.asarray(share)[moved]):.0%}, the mean over the joints): on stretches hidden "
+        "beside them lerp came nearer, as on motion unlike its training takes; `trial_holes=false` keeps the "
+        "network's fill"
     )
 
 

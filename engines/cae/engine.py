@@ -142,7 +142,9 @@ class TrainingParams:
     network's fill of each hole of at least ``hole_blend_frames`` frames where the root is
     unknown is tried against linear interpolation on stretches of the take hidden beside
     it, and each joint moves towards the linear fill where that fills the trial better
-    (:meth:`ConvAutoencoderEngine.trial_shares`).
+    (:meth:`ConvAutoencoderEngine.trial_shares`; not with constraints, which the trial
+    would not see); the diagnostic ``network_share`` (F,) is the mean share of the network's
+    fill kept over the joints in each frame (1 outside long holes).
     ``init_weights``: a weights folder of this engine to train on from (its network and its
     image normalisation, the layout and network rate the same; fine-tuning, or a run
     continued), instead of a fresh network (empty: fresh).
@@ -576,10 +578,12 @@ class ConvAutoencoderEngine(Engine):
         raw_positions = imaging.targets(raw, P)  # the take's joints where the network put them
         del P, image_positions
         out = self.anchored(image, mask, out, exact, step)
+        diagnostics = {"raw_positions": raw_positions}
         if self.params.trial_holes and self.params.anchor and not constraints:
             shares, turn_share, long_holes = self.trial_shares(
                 observation, imaging, image, mask, exact, body_frame, mirror, views
             )
+            diagnostics["network_share"] = np.where(long_holes, shares[HEAD_ROWS:].mean(), 1.0)
             if (shares < 1.0).any():  # towards the linear fill: the body's rows, and the heading
                 body = np.ix_(long_holes, np.arange(shares.size))  # the root's path is set above
                 out = out.copy()
@@ -595,7 +599,7 @@ class ConvAutoencoderEngine(Engine):
         if self.params.keep_observed:
             given = observation.channel_observed
             channels[given] = observation.motion.channels[given]
-        return CleanResult(observation.motion.with_channels(channels), {"raw_positions": raw_positions})
+        return CleanResult(observation.motion.with_channels(channels), diagnostics)
 
     def anchored(
         self, image: np.ndarray, mask: np.ndarray, out: np.ndarray, exact: np.ndarray, step: float

@@ -823,6 +823,9 @@ def test_a_network_that_misses_the_trial_leaves_the_long_hole_to_lerp(test_clip)
 
     lerp = _gap_error("lerp", test_clip, obs)
     assert gap_error(missing_by_20(registry.create("cae"))) < 1.05 * lerp
+    share = missing_by_20(registry.create("cae")).clean(obs).diagnostics["network_share"]
+    hole = ~obs.observed[:, 0]
+    assert share.shape == (test_clip.n_frames,) and (share[hole] < 0.5).all() and (share[~hole] == 1).all()
     assert gap_error(missing_by_20(registry.create("cae:trial_holes=false"))) > 2 * lerp
 
 
