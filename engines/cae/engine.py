@@ -94,7 +94,7 @@ SMOOTHER_PATH_SHARE = 0.75
 #: seconds of the take around a long hole and its trial block that a trial completes (``trial_holes``)
 TRIAL_CONTEXT_S = 2.0
 #: how much nearer a trial's mix must put a joint (or the body) in the hidden stretches than the network's fill alone
-TRIAL_MARGIN = 0.3
+TRIAL_MARGIN = 0.15
 
 
 @dataclass(frozen=True)
@@ -142,9 +142,9 @@ class TrainingParams:
     network's fill of each hole of at least ``hole_blend_frames`` frames where the root is
     unknown is tried against linear interpolation on stretches of the take hidden beside
     it, and each joint moves towards the linear fill where that fills the trial better
-    (:meth:`ConvAutoencoderEngine.trial_shares`; not with constraints, which the trial
-    would not see); the diagnostic ``network_share`` (F,) is the mean share of the network's
-    fill kept over the joints in each frame (1 outside long holes).
+    (:meth:`ConvAutoencoderEngine.trial_mix`; not with constraints, which the trial would
+    not see); the diagnostic ``network_share`` (F,) is the mean share of the network's fill
+    kept over the joints tried, in each frame (1 outside the holes tried).
     ``init_weights``: a weights folder of this engine to train on from (its network and its
     image normalisation, the layout and network rate the same; fine-tuning, or a run
     continued), instead of a fresh network (empty: fresh).
@@ -554,12 +554,16 @@ class ConvAutoencoderEngine(Engine):
         observed = observation.observed | holes
         observed[:, self.constant_] = True
         known = imaging.known(~position_unknown(observed, skeleton.parents))
+        own_frame = theta, ground  # the bridged take's heading and floor point: lerp's across a gap
         if self.params.anchor:
             ground, theta = anchored_trajectory(ground, theta, known[:, 0], step)
         image, mask = encode(layout, image_positions, theta, ground), image_mask(layout, known)
-        body_frame = theta, ground  # the image's, for a trial's linear fill
         views = self.views_used()
         mirror = mirror_rows(layout, imaging.names) if views > 1 else None
+        trial = None
+        if self.params.trial_holes and self.params.anchor and not constraints:
+            trial = self.trial_mix(observation, imaging, image, mask, image_positions, own_frame, mirror, views)
+        del own_frame
         net_out = self.complete(image, mask, mirror, views)
         out = self.low_pass(net_out)
         path, theta = trajectory(out, known[:, 0], ground, theta)
@@ -580,16 +584,10 @@ class ConvAutoencoderEngine(Engine):
         out = self.anchored(image, mask, out, exact, step)
         diagnostics = {"raw_positions": raw_positions}
         if self.params.trial_holes and self.params.anchor and not constraints:
-            shares, turn_share, long_holes = self.trial_shares(
-                observation, imaging, image, mask, exact, body_frame, mirror, views
-            )
-            diagnostics["network_share"] = np.where(long_holes, shares[HEAD_ROWS:].mean(), 1.0)
-            if (shares < 1.0).any():  # towards the linear fill: the body's rows, and the heading
-                body = np.ix_(long_holes, np.arange(shares.size))  # the root's path is set above
-                out = out.copy()
-                out[body] = image[body] + shares * (out[body] - image[body])
-                linear_theta, theta = body_frame[0][long_holes], theta.copy()
-                theta[long_holes] = linear_theta + turn_share * wrap(theta[long_holes] - linear_theta)
+            diagnostics["network_share"] = np.ones(image.shape[0])
+        if trial is not None:
+            out, theta = trial.applied(out, theta)
+            diagnostics["network_share"][trial.holes] = trial.network_share
         target = raw if out is net_out else decode(layout, out, ground, theta)  # as the paper: once
         del image, net_out, out
         root, angles, translations = imaging.solve(target, ik_root, ik_angles, **ik_options)
@@ -613,91 +611,100 @@ class ConvAutoencoderEngine(Engine):
                 out = self.blend_short_holes(out, mask, step)
         return out
 
-    def trial_shares(
+    def trial_mix(
         self,
         observation: Observation,
         imaging: OwnJoints | CanonicalJoints,
         image: np.ndarray,
         mask: np.ndarray,
-        exact: np.ndarray,
-        body_frame: tuple[np.ndarray, np.ndarray],
+        image_positions: np.ndarray,
+        own_frame: tuple[np.ndarray, np.ndarray],
         mirror: tuple[np.ndarray, np.ndarray] | None,
         views: int,
-    ) -> tuple[np.ndarray, float, np.ndarray]:
-        """(shares (H - 3,), heading's share, long holes (F,) bool): how much of the network's
-        fill to keep in each of the image's body rows (the hips' height and each joint's three
-        rows) and in the heading, against the linear fill already in ``image`` (its holes hold
-        the linearly interpolated angles' positions), in the frames of the long holes, those
-        where the root is unknown for at least ``hole_blend_frames`` frames inside the take.
-        Beside each long hole observed stretches as long are hidden (:func:`trial_blocks`), and
-        the take around them (:data:`TRIAL_CONTEXT_S` each side) completed again as a clean
-        completes it. A joint's share is the one of 0, 0.1, ..., 1 whose mix of the network's
-        and the linear fill puts it nearest its known positions in the hidden stretches (mean
-        distance in the image), where that beats the network's alone by :data:`TRIAL_MARGIN`,
-        else 1; the hips' height and the heading take the share chosen so for all joints
-        together. ``body_frame``: the image's (headings (F,), floor points (F, 3)). Ours:
+    ) -> "TrialMix | None":
+        """The mix of the network's and the linear fill that trials ask for in a take's long
+        holes, those where the root is unknown for at least ``hole_blend_frames`` frames
+        inside the take; None where no long hole has room for a trial. Beside each long hole
+        observed stretches as long are hidden (:func:`trial_blocks`), the take around them
+        (:data:`TRIAL_CONTEXT_S` each side) completed again as a clean completes it, and the
+        hidden stretches filled linearly (:meth:`linear_image`). A joint's share of the
+        network's fill is the one of 0, 0.1, ..., 1 whose mix puts it nearest its known
+        positions there (mean distance in the image, each pose on its own floor point and
+        heading), where that beats the network's alone by :data:`TRIAL_MARGIN`, else 1; the
+        hips' height and the heading take the share chosen so for all the joints tried
+        together. The mix applies to the holes that had a trial of their own.
+        ``image_positions`` (F, K, 3) and ``own_frame`` (headings (F,), floor points (F, 3)):
+        the bridged take's, so linearly interpolated across the long holes. Ours:
         ``docs/engines/cae.md``, *Trial holes*."""
         F, K = image.shape[0], (image.shape[1] - HEAD_ROWS - TAIL_ROWS) // 3
-        keep = np.ones(image.shape[1] - TAIL_ROWS)
         root_known = mask[:, 0]
         length = hole_length(~root_known[:, None])[:, 0]
         long_holes = ~root_known & (length >= max(self.params.hole_blend_frames, 1)) & np.isfinite(length)
         blocks = trial_blocks(long_holes, root_known)
         if not blocks:
-            return keep, 1.0, long_holes
+            return None
         context = round(TRIAL_CONTEXT_S * self.fps_)
         rows = slice(HEAD_ROWS, HEAD_ROWS + 3 * K)
         shares = np.linspace(0.0, 1.0, 11)
         distance = np.zeros((len(shares), K))  # summed over the hidden stretches' known positions
-        for lo, hi, trial in blocks:
-            lo, hi = max(lo - context, 0), min(hi + context, F)
-            hidden = np.zeros(hi - lo, bool)
-            hidden[trial[0] - lo : trial[1] - lo] = True
+        tried, holes = np.zeros(K, bool), np.zeros(F, bool)
+        for (a, b), (s, e) in blocks:
+            holes[a:b] = True
+            lo, hi = max(min(a, s) - context, 0), min(max(b, e) + context, F)
+            hidden = np.zeros((hi - lo, 1), bool)
+            hidden[s - lo : e - lo] = True
             crop = slice(lo, hi)
-            tmask = mask[crop] & ~hidden[:, None]
+            tmask = mask[crop] & image_mask(self.layout_, np.broadcast_to(~hidden, (hi - lo, self.layout_.n_joints)))
+            exact = tmask if self.params.keep_observed else np.zeros_like(tmask)
             completed = self.low_pass(self.complete(image[crop], tmask, mirror, views))
-            fill = self.anchored(image[crop], tmask, completed, exact[crop] & tmask, observation.capture_step)
-            frames = np.flatnonzero(hidden)
+            fill = self.anchored(image[crop], tmask, completed, exact, observation.capture_step)[s - lo : e - lo]
             part = Observation(observation.motion.slice(lo, hi), observation.observed[crop], observation.capture_step)
-            linear = self.linear_image(part, hidden, imaging, body_frame, lo)[frames, rows].reshape(len(frames), K, 3)
-            truth = image[crop][frames, rows].reshape(len(frames), K, 3)
-            known = mask[crop][frames, rows].reshape(len(frames), K, 3).all(axis=2)
-            net = fill[frames, rows].reshape(len(frames), K, 3)
+            linear = self.linear_image(part, hidden[:, 0], imaging)[s - lo : e - lo, rows].reshape(e - s, K, 3)
+            truth = image[s:e, rows].reshape(e - s, K, 3)
+            known = mask[s:e, rows].reshape(e - s, K, 3).all(axis=2)
+            net = fill[:, rows].reshape(e - s, K, 3)
+            tried |= known.any(axis=0)
             for i, share in enumerate(shares):
-                distance[i] += np.where(
-                    known, np.linalg.norm(linear + share * (net - linear) - truth, axis=2), 0.0
-                ).sum(0)
+                distance[i] += np.where(known, np.linalg.norm(linear + share * (net - linear) - truth, axis=2), 0).sum(
+                    0
+                )
+        if not tried.any():
+            return None
 
         def chosen(d: np.ndarray) -> np.ndarray:  # d (shares, n) -> (n,)
             best = np.argmin(d, axis=0)
             return np.where(d[best, np.arange(d.shape[1])] < (1.0 - TRIAL_MARGIN) * d[-1], shares[best], 1.0)
 
         whole = float(chosen(distance.sum(axis=1, keepdims=True))[0])
-        keep[:HEAD_ROWS] = whole
-        keep[rows] = np.repeat(chosen(distance), 3)
-        return keep, whole, long_holes
+        joint_shares = chosen(distance)
+        theta, ground = own_frame[0][holes], own_frame[1][holes]
+        linear = encode(self.layout_, image_positions[holes], theta, ground)[:, : rows.stop]
+        return TrialMix(
+            holes,
+            np.r_[np.full(HEAD_ROWS, whole), np.repeat(joint_shares, 3)],
+            whole,
+            linear,
+            theta,
+            float(joint_shares[tried].mean()),
+        )
 
     def linear_image(
-        self,
-        observation: Observation,
-        hidden: np.ndarray,
-        imaging: OwnJoints | CanonicalJoints,
-        body_frame: tuple[np.ndarray, np.ndarray],
-        first: int,
+        self, observation: Observation, hidden: np.ndarray, imaging: OwnJoints | CanonicalJoints
     ) -> np.ndarray:
         """The image rows (F, H) of ``observation`` with its ``hidden`` frames (F,) missing
-        too, the angles interpolated linearly across every gap (:func:`bridge_gaps`), in the
-        take's body frame (``body_frame``'s headings and floor points from frame ``first``
-        on); the velocity rows only as :func:`.representation.encode` gives them."""
+        too and the angles interpolated linearly across every gap (:func:`bridge_gaps`),
+        each frame on the bridged take's own floor point and heading (the velocity rows only
+        as :func:`.representation.encode` gives them)."""
         observed = observation.observed & ~hidden[:, None]
         channels = observation.motion.channels.copy()
         channels[hidden] = np.nan
         seen = Observation(observation.motion.with_channels(channels), observed, observation.capture_step)
         linear = bridge_gaps(seen)
-        F = observation.n_frames
-        P = joint_positions(observation.skeleton, linear[:, :3], linear[:, 3:].reshape(F, -1, 3))
-        theta, ground = body_frame
-        return encode(self.layout_, imaging.positions(P), theta[first : first + F], ground[first : first + F])
+        F, skeleton = observation.n_frames, observation.skeleton
+        angles = linear[:, 3:].reshape(F, -1, 3)
+        positions = imaging.positions(joint_positions(skeleton, linear[:, :3], angles))
+        theta = imaging.heading(positions, local_rotations(skeleton, angles, [0])[:, 0])
+        return encode(self.layout_, positions, theta, positions[:, 0] * np.array([1.0, 0.0, 1.0]))
 
     def bridged_holes(self, observation: Observation, channels: np.ndarray, positions: np.ndarray) -> np.ndarray:
         """The holes (F, J) that count as observed, bridged by the constant-velocity
@@ -848,12 +855,40 @@ class ConvAutoencoderEngine(Engine):
         return image, mask | constrained, constrained
 
 
-def trial_blocks(long_holes: np.ndarray, root_known: np.ndarray) -> list[tuple[int, int, tuple[int, int]]]:
-    """For each run of ``long_holes`` (F,) bool and each side of it, (first, end, (trial
-    first, trial end)): the frames from the hole to a trial block, a stretch as long as the
-    hole a quarter of its length (at least 2 frames) away, where the root is known
-    (``root_known`` (F,)) in it and in the frame on either side and no other trial block
-    touches it; a side without room gets none."""
+@dataclass(frozen=True)
+class TrialMix:
+    """What the trials beside a take's long holes ask (:meth:`ConvAutoencoderEngine.trial_mix`):
+    in the frames ``holes`` (F,) bool the image's body rows (the hips' height, each joint's
+    three; (H - 3,)) keep ``shares`` of the network's fill and take the rest from
+    ``linear`` (n, H - 3), the linear fill's rows on its own floor point and heading; the
+    heading keeps ``turn_share`` of the network's and takes the rest from ``linear_theta``
+    (n,). ``network_share``: the mean of the tried joints' shares (the ``network_share``
+    diagnostic in those frames)."""
+
+    holes: np.ndarray
+    shares: np.ndarray
+    turn_share: float
+    linear: np.ndarray
+    linear_theta: np.ndarray
+    network_share: float
+
+    def applied(self, out: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The completion (F, H) and the headings (F,) decoded from it, mixed in the holes."""
+        if (self.shares == 1.0).all():
+            return out, theta
+        out, theta = out.copy(), theta.copy()
+        body = np.ix_(self.holes, np.arange(self.shares.size))  # the root's path is the network's and smoother's
+        out[body] = self.linear + self.shares * (out[body] - self.linear)
+        theta[self.holes] = self.linear_theta + self.turn_share * wrap(theta[self.holes] - self.linear_theta)
+        return out, theta
+
+
+def trial_blocks(long_holes: np.ndarray, root_known: np.ndarray) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """For each run of ``long_holes`` (F,) bool and each side of it, ((hole first, hole end),
+    (trial first, trial end)): a stretch as long as the hole a quarter of its length (at
+    least 2 frames) away, where the root is known (``root_known`` (F,)) in it and in the
+    frame on either side and no other trial block touches it; a side without room gets
+    none."""
     F = len(long_holes)
     taken = np.zeros(F, bool)
     blocks = []
@@ -863,7 +898,7 @@ def trial_blocks(long_holes: np.ndarray, root_known: np.ndarray) -> list[tuple[i
         for s, e in ((a - gap - n, a - gap), (b + gap, b + gap + n)):
             if s >= 1 and e <= F - 1 and root_known[s - 1 : e + 1].all() and not taken[s - 1 : e + 1].any():
                 taken[s:e] = True
-                blocks.append((min(a, s), max(b, e), (s, e)))
+                blocks.append(((int(a), int(b)), (int(s), int(e))))
     return blocks
 
 

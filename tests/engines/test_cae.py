@@ -3,12 +3,14 @@ weights, keep_observed, constraints, skeleton checks, fitting, saving and loadin
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 
 from engines.cae import CAE, Holden
-from engines.cae.engine import trial_blocks
+from engines.cae.engine import TrialMix, trial_blocks
 from engines.cae.representation import (
     TAIL_ROWS,
     Layout,
@@ -790,13 +792,13 @@ def test_trial_blocks_sit_beside_their_holes_where_the_take_is_observed():
     side where the root is known in and around them."""
     long_holes = np.zeros(100, bool)
     long_holes[20:40] = True
-    assert trial_blocks(long_holes, ~long_holes) == [(20, 65, (45, 65))]  # no room before it
+    assert trial_blocks(long_holes, ~long_holes) == [((20, 40), (45, 65))]  # no room before it
     long_holes[:] = False
     long_holes[50:70] = True
     root_known = ~long_holes
-    assert trial_blocks(long_holes, root_known) == [(25, 70, (25, 45)), (50, 95, (75, 95))]
+    assert trial_blocks(long_holes, root_known) == [((50, 70), (25, 45)), ((50, 70), (75, 95))]
     root_known[30] = False  # the root missing there too: after it alone
-    assert trial_blocks(long_holes, root_known) == [(50, 95, (75, 95))]
+    assert trial_blocks(long_holes, root_known) == [((50, 70), (75, 95))]
     root_known[80] = False
     assert trial_blocks(long_holes, root_known) == []
 
@@ -836,3 +838,45 @@ def test_a_network_that_fills_the_trial_well_keeps_its_fill(test_clip):
     with_trial = _gap_error("cae", test_clip, obs)
     assert with_trial < 1.03 * _gap_error("cae:trial_holes=false", test_clip, obs)
     assert with_trial < 0.7 * _gap_error("lerp", test_clip, obs)
+
+
+def test_a_mix_of_none_of_the_network_s_fill_is_lerp_s_fill(clips, monkeypatch):
+    """The linear fill a trial mixes in is lerp's own, pose and heading, also where the
+    smoothed root path the network's image is built on leaves lerp's (a Daz kick)."""
+    kick = next(c for c in clips if c.id == "cmu-daz/kick/10_03").load()
+    obs = parse_corruption("block:1s").apply(kick, seed=0)
+    applied = TrialMix.applied
+    none = lambda self, out, theta: applied(  # noqa: E731
+        dataclasses.replace(self, shares=0 * self.shares, turn_share=0.0), out, theta
+    )
+    monkeypatch.setattr(TrialMix, "applied", none)
+    filled, lerp = registry.create("cae").clean(obs).motion, registry.create("lerp").clean(obs).motion
+    assert metrics.joint_position_error_cm(lerp, filled)[~obs.observed[:, 0]].max() < 0.05
+
+
+def test_a_long_hole_without_room_for_a_trial_keeps_the_network_s_fill(test_clip):
+    """Two long holes: the first has room for a trial after it, the second none on either
+    side; a network missing by 20 cm gives the first to lerp and leaves the second alone."""
+    observed = np.ones((test_clip.n_frames, test_clip.skeleton.n_joints), bool)
+    observed[40:100] = observed[200:320] = False
+    channels = test_clip.channels.copy()
+    channels[~observed.any(axis=1)] = np.nan
+    obs = Observation(test_clip.with_channels(channels), observed)
+
+    def missing_by_20(engine):
+        complete = engine.complete
+
+        def off(image, mask, *args):
+            out = complete(image, mask, *args)
+            out[:, :-TAIL_ROWS] += np.where(mask[:, :-TAIL_ROWS], 0.0, 20.0)
+            return out
+
+        engine.complete = off
+        return engine
+
+    with_trial = missing_by_20(registry.create("cae")).clean(obs)
+    without = missing_by_20(registry.create("cae:trial_holes=false")).clean(obs).motion
+    share = with_trial.diagnostics["network_share"]
+    assert (share[40:100] < 0.5).all() and (share[200:320] == 1).all()
+    apart = metrics.joint_position_error_cm(without, with_trial.motion)
+    assert apart[40:100].mean() > 5 and apart[200:320].max() < 1e-6
