@@ -582,6 +582,27 @@ def test_the_banded_smoother_solves_a_few_columns_at_a_time_with_the_same_bits(m
         np.testing.assert_array_equal(smoothing.cv_smooth(Y, obs, q, r), whole)
 
 
+def test_a_column_too_ill_conditioned_for_cholesky_gets_the_line_through_its_samples():
+    """A channel at rest (the variance floors) seen in four frames close together of a
+    2,251-frame take: its system defeats banded Cholesky, so it gets the line through its
+    samples (the smoother's limit), and the other columns of the solve keep their values."""
+    from workbench.engine import smoothing
+
+    F = 2251
+    Y = np.zeros((F, 2))
+    Y[:, 0] = 12.5
+    Y[:, 1] = np.sin(np.arange(F) / 40.0)
+    obs = np.zeros((F, 2), bool)
+    obs[1000:1004, 0] = True
+    obs[::3, 1] = True
+    q, r = np.array([1e-18, 1e-3]), np.array([1e-10, 1e-2])
+    with pytest.raises(np.linalg.LinAlgError):
+        smoothing._solve_banded(smoothing.second_difference_band(F), Y[:, :1], obs[:, :1], q[:1], r[:1])
+    out = smoothing.cv_smooth(Y, obs, q, r)
+    np.testing.assert_allclose(out[:, 0], 12.5, atol=1e-9)
+    np.testing.assert_array_equal(out[:, 1], smoothing.cv_smooth(Y[:, 1:], obs[:, 1:], q[1:], r[1:])[:, 0])
+
+
 def test_coupled_smoother_equals_rts_recursion():
     from engines.kalman.coupled import coupled_smooth
 

@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.linalg import solveh_banded
+from scipy.linalg import LinAlgError, solveh_banded
 
 from ..core.channels import interpolate_gaps
 from ..core.kinematics import short_lever_joints
@@ -198,21 +198,39 @@ BANDED_UNKNOWNS = 1 << 20
 
 def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky,
-    as many columns a solve as :data:`BANDED_UNKNOWNS` allows."""
+    as many columns a solve as :data:`BANDED_UNKNOWNS` allows. A column whose system is too
+    ill-conditioned for Cholesky (a few observed frames close together in a long take, with
+    q / r near 0: a channel at rest) gets the least-squares line through its observed
+    samples, the solution's limit as q / r goes to 0."""
     F, D = Y.shape
     out = np.empty((F, D))
     band, per_solve = second_difference_band(F), max(1, BANDED_UNKNOWNS // max(F, 1))
     for c in range(0, D, per_solve):
-        cols = slice(c, c + per_solve)
-        ir = 1.0 / r[cols]
-        ab = band[:, None, :] * (1.0 / q[cols])[None, :, None]  # (3, n, F)
-        ab[0] += observed[:, cols].T * ir[:, None]
-        b = np.where(observed[:, cols], Y[:, cols], 0.0).T * ir[:, None]  # (n, F)
-        x = solveh_banded(
-            ab.reshape(3, -1), b.reshape(-1), overwrite_ab=True, overwrite_b=True, lower=True, check_finite=False
-        )
-        out[:, cols] = x.reshape(-1, F).T
+        cols = np.arange(c, min(c + per_solve, D))
+        try:
+            out[:, cols] = _solve_banded(band, Y[:, cols], observed[:, cols], q[cols], r[cols])
+        except LinAlgError:  # one column at a time, to find those that fail
+            for k in cols:
+                try:
+                    out[:, k] = _solve_banded(band, Y[:, [k]], observed[:, [k]], q[[k]], r[[k]])[:, 0]
+                except LinAlgError:
+                    t = np.flatnonzero(observed[:, k])
+                    slope, intercept = np.polyfit(t, Y[t, k], 1)
+                    out[:, k] = intercept + slope * np.arange(F)
     return out
+
+
+def _solve_banded(band: np.ndarray, Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(F, n): the solve of :func:`_smooth_banded` for the n columns of ``Y`` (F, n) at once."""
+    F = Y.shape[0]
+    ir = 1.0 / r
+    ab = band[:, None, :] * (1.0 / q)[None, :, None]  # (3, n, F)
+    ab[0] += observed.T * ir[:, None]
+    b = np.where(observed, Y, 0.0).T * ir[:, None]  # (n, F)
+    x = solveh_banded(
+        ab.reshape(3, -1), b.reshape(-1), overwrite_ab=True, overwrite_b=True, lower=True, check_finite=False
+    )
+    return x.reshape(-1, F).T
 
 
 def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = True, *, step: float = 1.0) -> np.ndarray:
