@@ -633,8 +633,10 @@ class ConvAutoencoderEngine(Engine):
         heading), where that beats the network's alone by :data:`TRIAL_MARGIN`, else 1; the
         hips' height and the heading take the share chosen so for all the joints tried
         together. The mix applies to the holes that had a trial of their own.
-        ``image_positions`` (F, K, 3) and ``own_frame`` (headings (F,), floor points (F, 3)):
-        the bridged take's, so linearly interpolated across the long holes. Ours:
+        ``image_positions`` (F, J, 3), J the layout's joints, and ``own_frame`` (headings
+        (F,), floor points (F, 3)): the bridged take's, so linearly interpolated across the
+        long holes. The root's floor path across a hole stays the network's and the
+        smoother's (:data:`SMOOTHER_PATH_SHARE`): the mix is of the pose and the heading. Ours:
         ``docs/engines/cae.md``, *Trial holes*."""
         F, K = image.shape[0], (image.shape[1] - HEAD_ROWS - TAIL_ROWS) // 3
         root_known = mask[:, 0]
@@ -874,7 +876,7 @@ class TrialMix:
 
     def applied(self, out: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The completion (F, H) and the headings (F,) decoded from it, mixed in the holes."""
-        if (self.shares == 1.0).all():
+        if (self.shares == 1.0).all() and self.turn_share == 1.0:
             return out, theta
         out, theta = out.copy(), theta.copy()
         body = np.ix_(self.holes, np.arange(self.shares.size))  # the root's path is the network's and smoother's

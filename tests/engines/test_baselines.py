@@ -585,7 +585,8 @@ def test_the_banded_smoother_solves_a_few_columns_at_a_time_with_the_same_bits(m
 def test_a_column_too_ill_conditioned_for_cholesky_gets_the_line_through_its_samples():
     """A channel at rest (the variance floors) seen in four frames close together of a
     2,251-frame take: its system defeats banded Cholesky, so it gets the line through its
-    samples (the smoother's limit), and the other columns of the solve keep their values."""
+    samples (the smoother's limit), and the other columns of the solve keep their values;
+    in a shorter take the solve goes through and stays on the line."""
     from workbench.engine import smoothing
 
     F = 2251
@@ -601,6 +602,15 @@ def test_a_column_too_ill_conditioned_for_cholesky_gets_the_line_through_its_sam
     out = smoothing.cv_smooth(Y, obs, q, r)
     np.testing.assert_allclose(out[:, 0], 12.5, atol=1e-9)
     np.testing.assert_array_equal(out[:, 1], smoothing.cv_smooth(Y[:, 1:], obs[:, 1:], q[1:], r[1:])[:, 0])
+    # 1,200 frames and samples a little off the line: Cholesky gets through, and solving for
+    # the departure from the line keeps the solution exact (against a dense least-squares solve)
+    F, seen = 1200, np.zeros(1200, bool)
+    seen[600:604] = True
+    y = 12.5 + np.where(seen, 1e-5 * np.random.default_rng(1).normal(size=F), 0.0)
+    D2 = np.diff(np.eye(F), 2, axis=0)
+    system = np.vstack([np.eye(F)[seen] / np.sqrt(r[0]), D2 / np.sqrt(q[0])])
+    exact = np.linalg.lstsq(system, np.r_[y[seen] / np.sqrt(r[0]), np.zeros(F - 2)], rcond=None)[0]
+    np.testing.assert_allclose(smoothing.cv_smooth(y[:, None], seen[:, None], q[0], r[0])[:, 0], exact, atol=1e-6)
 
 
 def test_coupled_smoother_equals_rts_recursion():

@@ -841,8 +841,9 @@ def test_a_network_that_fills_the_trial_well_keeps_its_fill(test_clip):
 
 
 def test_a_mix_of_none_of_the_network_s_fill_is_lerp_s_fill(clips, monkeypatch):
-    """The linear fill a trial mixes in is lerp's own, pose and heading, also where the
-    smoothed root path the network's image is built on leaves lerp's (a Daz kick)."""
+    """The linear fill a trial mixes in is lerp's own pose and heading (root-aligned: the
+    root's floor path stays the engine's), also where the smoothed root path the network's
+    image is built on leaves lerp's (a Daz kick)."""
     kick = next(c for c in clips if c.id == "cmu-daz/kick/10_03").load()
     obs = parse_corruption("block:1s").apply(kick, seed=0)
     applied = TrialMix.applied

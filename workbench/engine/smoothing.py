@@ -29,7 +29,11 @@ recursion) without a Python loop over frames:
   so x is one DCT, a per-frequency gain ``1 / (1 + lambda mu_k^2)``, a rank-2
   Woodbury correction and one inverse DCT;
 * channels with gaps: one banded Cholesky solve (LAPACK ``pbsv``) of all of them
-  stacked one after another (uncoupled).
+  stacked one after another (uncoupled), for each channel's departure from the
+  least-squares line through its observed samples (``D2`` takes lines to 0, so the system
+  is the same; near ``q / r = 0``, a channel at rest seen in a few frames close together,
+  the departure is what stays accurate); where Cholesky still fails, the line itself,
+  the solution's limit as ``q / r`` goes to 0.
 
 
 The position engines' parameters, shared by the helpers below :func:`smooth_joint_angles`:
@@ -83,8 +87,9 @@ def cv_smooth(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray)
     """RTS-smoothed positions of the constant-velocity model above, channel by channel.
 
     Solved exactly: by DCT for the channels observed at every frame (F >= 4), by one
-    banded Cholesky solve for the others. A channel with fewer than two observations is
-    returned constant (its observed value, or 0).
+    banded Cholesky solve for the others (the module docstring: about their lines, which a
+    system too ill-conditioned for Cholesky returns). A channel with fewer than two
+    observations is returned constant (its observed value, or 0).
 
     Parameters
     ----------
@@ -197,11 +202,9 @@ BANDED_UNKNOWNS = 1 << 20
 
 
 def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column by banded Cholesky,
-    as many columns a solve as :data:`BANDED_UNKNOWNS` allows. A column whose system is too
-    ill-conditioned for Cholesky (a few observed frames close together in a long take, with
-    q / r near 0: a channel at rest) gets the least-squares line through its observed
-    samples, the solution's limit as q / r goes to 0."""
+    """Exact solution of ``(W/r + D2'D2/q) x = W y / r`` per column (at least two observed
+    samples each) by banded Cholesky, as many columns a solve as :data:`BANDED_UNKNOWNS`
+    allows: the module docstring."""
     F, D = Y.shape
     out = np.empty((F, D))
     band, per_solve = second_difference_band(F), max(1, BANDED_UNKNOWNS // max(F, 1))
@@ -214,23 +217,37 @@ def _smooth_banded(Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.nda
                 try:
                     out[:, k] = _solve_banded(band, Y[:, [k]], observed[:, [k]], q[[k]], r[[k]])[:, 0]
                 except LinAlgError:
-                    t = np.flatnonzero(observed[:, k])
-                    slope, intercept = np.polyfit(t, Y[t, k], 1)
-                    out[:, k] = intercept + slope * np.arange(F)
+                    out[:, k] = _observed_lines(Y[:, [k]], observed[:, [k]])[:, 0]
     return out
 
 
 def _solve_banded(band: np.ndarray, Y: np.ndarray, observed: np.ndarray, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """(F, n): the solve of :func:`_smooth_banded` for the n columns of ``Y`` (F, n) at once."""
+    """(F, n): the solve of :func:`_smooth_banded` for the n columns of ``Y`` (F, n) at once,
+    for their departures from :func:`_observed_lines`."""
     F = Y.shape[0]
+    lines = _observed_lines(Y, observed)
     ir = 1.0 / r
     ab = band[:, None, :] * (1.0 / q)[None, :, None]  # (3, n, F)
     ab[0] += observed.T * ir[:, None]
-    b = np.where(observed, Y, 0.0).T * ir[:, None]  # (n, F)
+    b = np.where(observed, Y - lines, 0.0).T * ir[:, None]  # (n, F)
     x = solveh_banded(
         ab.reshape(3, -1), b.reshape(-1), overwrite_ab=True, overwrite_b=True, lower=True, check_finite=False
     )
-    return x.reshape(-1, F).T
+    return lines + x.reshape(-1, F).T
+
+
+def _observed_lines(Y: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """(F, n): each column's least-squares line through its observed samples of ``Y`` (F, n),
+    at least two each; row by row of the transposes, so a column's line has the same bits
+    whatever columns come with it."""
+    y, w = np.ascontiguousarray(Y.T), np.ascontiguousarray(observed.T)  # (n, F)
+    t = np.arange(y.shape[1], dtype=float)
+    n = w.sum(axis=1)
+    t_mean = np.where(w, t, 0.0).sum(axis=1) / n
+    y_mean = np.where(w, y, 0.0).sum(axis=1) / n
+    dt = np.where(w, t - t_mean[:, None], 0.0)
+    slope = (dt * np.where(w, y - y_mean[:, None], 0.0)).sum(axis=1) / (dt * dt).sum(axis=1)
+    return (y_mean[:, None] + slope[:, None] * (t - t_mean[:, None])).T
 
 
 def measurement_variance(Y: np.ndarray, observed: np.ndarray, robust: bool = True, *, step: float = 1.0) -> np.ndarray:
