@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from workbench.cli import main, split_engine_specs
-from workbench.io import read_bvh
+from workbench.io import read_bvh, write_bvh
 from workbench.io.mask import read_mask
 from workbench.testing.takes import chain_bvh
 
@@ -706,3 +706,27 @@ def test_a_take_s_unit_can_be_given_where_its_rest_pose_guesses_wrong(tmp_path, 
     assert main([*argv, "--resume"]) == 2  # a folder cleaned with another unit
     assert "--unit 1, not --engine 'kalman'" in capsys.readouterr().err
     assert main([*argv, "--unit", "cm", "--resume"]) == 0
+
+
+def test_bench_and_train_read_a_folder_of_takes_in_the_unit_given(tmp_path, walk, capsys, monkeypatch):
+    """--unit with --data: every clip is read in that unit, so lerp's gap error in cm grows
+    with the unit's size; train loads its clips in it too."""
+    folder = tmp_path / "takes"
+    folder.mkdir()
+    write_bvh(folder / "walk.bvh", walk.slice(1, 300))
+    errors = {}
+    for unit in ("cm", "10"):
+        out = tmp_path / f"bench-{unit}.json"
+        argv = ["bench", "--data", str(folder), "--split", "all", "--engines", "lerp", "--corrupt", "block:30"]
+        assert main([*argv, "--seeds", "1", "--unit", unit, "--json", str(out)]) == 0
+        errors[unit] = json.loads(out.read_text())["summary"]["lerp"]["gap_mpjpe_cm"]
+    assert errors["10"] == pytest.approx(10 * errors["cm"])
+    units = []
+
+    def units_then_stop(self, motions):  # the clips train loads, then no training
+        units.extend(m.skeleton.unit_cm for m in motions)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("workbench.engine.Engine.training_motions", units_then_stop)
+    assert main(["train", "kalman-learned", "--data", str(folder), "--unit", "in", "--out", str(tmp_path / "w")]) == 130
+    assert units == [2.54]

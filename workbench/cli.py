@@ -9,6 +9,7 @@ nothing is half-written.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -621,7 +622,13 @@ def _bench_clips(args):
             + elsewhere
             + (f"\n{CMU_CLIPS}" if is_embedded(root) else "")
         )
-    return chosen
+    return _in_unit(chosen, args)
+
+
+def _in_unit(clips: list, args) -> list:
+    """``clips`` read in the length unit ``--unit`` gives, where it is given."""
+    unit = getattr(args, "unit", None)
+    return clips if unit is None else [dataclasses.replace(c, unit_cm=unit) for c in clips]
 
 
 def _bench_notes(result) -> None:
@@ -822,6 +829,7 @@ def cmd_train(args) -> int:
         if not 0 < args.share <= 100:
             raise UserError(f"--share is a percentage in (0, 100], not {args.share:g}")
         train = share(train, args.share)
+    train = _in_unit(train, args)
     first = train[0].load()
     engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
     loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
@@ -842,7 +850,7 @@ def cmd_train(args) -> int:
             )
     out = _weights_out(args.out, engine, args.overwrite)
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
-    test = [(c.id, c.load()) for c in select(clips, "test")]
+    test = [(c.id, c.load()) for c in _in_unit(select(clips, "test"), args)]
     try:
         run = train_engine(
             engine, [(c.id, m) for c, m in used], out, test=test, datasets={c.id: c.dataset for c, _ in used}
@@ -1042,12 +1050,12 @@ def build_parser() -> argparse.ArgumentParser:
             "(`workbench skeleton TAKE --mapping FILE` shows what it maps)",
         )
 
-    def unit_opt(sp):
+    def unit_opt(sp, whose: str = "the take's length unit"):
         sp.add_argument(
             "--unit",
             type=_unit,
             metavar="UNIT",
-            help="the take's length unit, where the one its rest pose's height suggests is wrong: mm, cm, m, in, "
+            help=f"{whose}, where the one the rest pose's height suggests is wrong: mm, cm, m, in, "
             "cmu (CMU's 5.64 cm) or a unit's size in cm",
         )
 
@@ -1156,6 +1164,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
     sp.add_argument("--corrupt", required=True, metavar="SPEC")
     clip_options(sp, default_split="test")
+    unit_opt(sp, "the length unit of every clip benchmarked (a folder of takes by --data)")
     sp.add_argument(
         "--per-clip",
         choices=METRICS,
@@ -1212,6 +1221,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sp.add_argument("--overwrite", action="store_true", help="replace the weights --out holds already")
     mapping_opt(sp)
+    unit_opt(sp, "the length unit of every clip trained on (a folder of takes by --data)")
     sp.add_argument(
         "--promote",
         action="store_true",

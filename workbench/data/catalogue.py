@@ -62,7 +62,9 @@ SPLITS = ("train", "validation", "test")
 class Clip:
     """One take in the catalogue. ``split`` is one of :data:`SPLITS` or ""; ``style`` the
     performance style of a set that records one (Bandai's happy, old, ...), else "";
-    ``frames`` counts the file's frames (reference frame included) when known, else 0."""
+    ``frames`` counts the file's frames (reference frame included) when known, else 0;
+    ``unit_cm`` the size of the file's length unit in cm where the user gave it (``--unit``),
+    else None: guessed from the rest pose (:func:`workbench.io.read_motion`)."""
 
     id: str
     path: Path
@@ -73,9 +75,10 @@ class Clip:
     frames: int = 0
     fps: float = 0.0
     style: str = ""
+    unit_cm: float | None = None
 
     def load(self, keep_reference: bool = False) -> Motion:
-        motion = read_motion(self.path)
+        motion = read_motion(self.path, self.unit_cm)
         return (motion if keep_reference else without_reference_frame(motion)).replace(name=self.id)
 
 
