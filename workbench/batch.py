@@ -242,12 +242,15 @@ def _trial_note(result, name: str) -> str | None:
     """A note where an autoencoder filled long holes partly by linear interpolation, as trials
     beside them asked (its ``network_share`` diagnostic below 1); else None."""
     share = result.diagnostics.get("network_share")
-    if share is None or not (np.asarray(share) < 1.0).any():
+    if share is None:
         return None
-    moved = np.asarray(share) < 1.0
+    share = np.asarray(share)
+    moved = share < 1.0
+    if not moved.any():
+        return None
     return (
         f"{name} filled {int(moved.sum())} frames of long holes partly by linear interpolation (its network's "
-        f"fill kept at {np.mean(np.asarray(share)[moved]):.0%}, the mean over the joints): on stretches hidden "
+        f"fill kept at {share[moved].mean():.0%}, the mean over the joints): on stretches hidden "
         "beside them lerp came nearer, as on motion unlike its training takes; `trial_holes=false` keeps the "
         "network's fill"
     )

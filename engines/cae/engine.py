@@ -560,8 +560,9 @@ class ConvAutoencoderEngine(Engine):
         image, mask = encode(layout, image_positions, theta, ground), image_mask(layout, known)
         views = self.views_used()
         mirror = mirror_rows(layout, imaging.names) if views > 1 else None
+        trialled = self.params.trial_holes and self.params.anchor and not constraints
         trial = None
-        if self.params.trial_holes and self.params.anchor and not constraints:
+        if trialled:
             trial = self.trial_mix(observation, imaging, image, mask, image_positions, own_frame, mirror, views)
         del own_frame
         net_out = self.complete(image, mask, mirror, views)
@@ -583,7 +584,7 @@ class ConvAutoencoderEngine(Engine):
         del P, image_positions
         out = self.anchored(image, mask, out, exact, step)
         diagnostics = {"raw_positions": raw_positions}
-        if self.params.trial_holes and self.params.anchor and not constraints:
+        if trialled:
             diagnostics["network_share"] = np.ones(image.shape[0])
         if trial is not None:
             out, theta = trial.applied(out, theta)
