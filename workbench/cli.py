@@ -812,7 +812,7 @@ def cmd_train(args) -> int:
             "(--out says where the new weights go)"
         )
     root = _data_root(args, training=True)
-    clips = catalogue(root)
+    clips = _in_unit(catalogue(root), args)
     dataset = args.dataset
     if dataset is None and len({c.dataset for c in select(clips, "train")}) > 1:
         dataset = COMMITTED_UNIVERSAL_DATASETS if engine.skeleton_agnostic else COMMITTED_WEIGHTS_DATASET
@@ -829,7 +829,6 @@ def cmd_train(args) -> int:
         if not 0 < args.share <= 100:
             raise UserError(f"--share is a percentage in (0, 100], not {args.share:g}")
         train = share(train, args.share)
-    train = _in_unit(train, args)
     first = train[0].load()
     engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
     loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
@@ -850,7 +849,7 @@ def cmd_train(args) -> int:
             )
     out = _weights_out(args.out, engine, args.overwrite)
     print(f"training {engine.spec} on {len(used)} clips ({sum(m.n_frames for _, m in used):,} frames)", file=sys.stderr)
-    test = [(c.id, c.load()) for c in _in_unit(select(clips, "test"), args)]
+    test = [(c.id, c.load()) for c in select(clips, "test")]
     try:
         run = train_engine(
             engine, [(c.id, m) for c, m in used], out, test=test, datasets={c.id: c.dataset for c, _ in used}
