@@ -383,3 +383,24 @@ def test_clean_says_where_an_autoencoder_left_a_long_hole_partly_to_lerp(embedde
     assert any(n.startswith("cae filled 120 frames of long holes partly by linear") for n in notes)
     quiet = batch.clean_file(create("cae:trial_holes=false"), take, tmp_path / "o.bvh").notes
     assert not any("linear" in n for n in quiet)
+
+
+def test_a_reference_frame_with_a_missing_value_is_cleaned_with_the_motion(embedded_root, tmp_path):
+    from workbench.data import find_clip, has_reference_frame
+    from workbench.io import read_bvh
+    from workbench.io.bvh import format_bvh
+    from workbench.registry import create
+
+    walk = find_clip("cmu/walk/35_31", embedded_root).load(keep_reference=True).slice(0, 40)
+    assert has_reference_frame(walk)
+    lines = format_bvh(walk).splitlines()
+    first = lines.index(next(line for line in lines if line.startswith("Frame Time:"))) + 1
+    values = lines[first].split()
+    values[11] = "nan"  # a converter's rest frame, damaged: written back as it is, it would stop the write
+    lines[first] = " ".join(values)
+    take = tmp_path / "damaged.bvh"
+    take.write_text("\n".join(lines) + "\n")
+    assert not has_reference_frame(read_bvh(take))
+    report = batch.clean_file(create("lerp"), take, tmp_path / "out.bvh")
+    assert not any("reference frame" in note for note in report.notes)
+    assert np.isfinite(read_bvh(tmp_path / "out.bvh").channels).all()

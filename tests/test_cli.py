@@ -730,3 +730,17 @@ def test_bench_and_train_read_a_folder_of_takes_in_the_unit_given(tmp_path, walk
     monkeypatch.setattr("workbench.engine.Engine.training_motions", units_then_stop)
     assert main(["train", "kalman-learned", "--data", str(folder), "--unit", "in", "--out", str(tmp_path / "w")]) == 130
     assert units == [2.54]
+
+
+def test_an_empty_corruption_or_a_mapping_that_does_not_fit_the_take_stops_the_command(tmp_path, data_root, capsys):
+    src = data_root / "cmu" / "walk" / "02_01.bvh"
+    with pytest.raises(SystemExit) as stop:  # an empty shell variable: the clean take scored, every error 0
+        main(["bench", "--data", str(src.parent), "--engines", "lerp", "--corrupt", " "])
+    assert stop.value.code == 2 and "--corrupt: empty: give a spec such as" in capsys.readouterr().err
+    mapping = tmp_path / "mapping.json"
+    mapping.write_text('{"neck": "NoSuchJoint"}')
+    out = tmp_path / "out.bvh"
+    for engine in ("lerp", "gaussian>kalman"):  # engines that never map the take check the file all the same
+        assert main(["clean", str(src), "-o", str(out), "--engine", engine, "--mapping", str(mapping)]) == 2
+        assert "neck = 'NoSuchJoint', but the take has no joint 'NoSuchJoint'" in capsys.readouterr().err
+        assert not out.exists()

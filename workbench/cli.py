@@ -1005,6 +1005,16 @@ def _whole_number(least: int):
     return parse
 
 
+def _corruption_text(text: str) -> str:
+    """An argparse type: a corruption spec, not blank (an empty shell variable would
+    otherwise score the clean take, every error 0)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "empty: give a spec such as angular:0.5+gaps:0.01, or 'none' for the clean take"
+        )
+    return text
+
+
 def _unit(text: str) -> float:
     """An argparse type: a length unit's size in cm, by name
     (:data:`workbench.core.skeleton.UNITS_CM`) or as a positive number."""
@@ -1111,7 +1121,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
     sp.add_argument("input")
     sp.add_argument("-o", "--output", required=True)
-    sp.add_argument("--corrupt", required=True, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01")
+    sp.add_argument(
+        "--corrupt", required=True, type=_corruption_text, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01"
+    )
     sp.add_argument("--seed", type=_whole_number(0), default=0)
     sp.add_argument("--keep-reference", action="store_true", help="keep a T-pose frame 0")
     unit_opt(sp)
@@ -1161,7 +1173,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
     sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
-    sp.add_argument("--corrupt", required=True, metavar="SPEC")
+    sp.add_argument("--corrupt", required=True, type=_corruption_text, metavar="SPEC")
     clip_options(sp, default_split="test")
     unit_opt(sp, "the length unit of every clip benchmarked (a folder of takes by --data)")
     sp.add_argument(
@@ -1239,6 +1251,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument(
             "--corrupt",
             default=DEFAULT_CORRUPTION,
+            type=_corruption_text,
             metavar="SPEC",
             help=f"corruption of a clean take, 'none' for a noisy one (default {last}{DEFAULT_CORRUPTION})",
         )

@@ -439,6 +439,9 @@ def test_refuses_another_skeleton_naming_the_ones_it_has_weights_for(ebf, kick, 
     (tmp_path / "t.bvh").write_text(text[:channels] + "Xrotation Yrotation Zrotation" + text[channels + 29 :])
     with pytest.raises(EngineError, match="the joints of its cmu weights with other channels or rotation orders"):
         ebf.clean(Observation(read_bvh(tmp_path / "t.bvh")))
+    (tmp_path / "r.bvh").write_text(text.replace("JOINT LeftArm", "JOINT LinkerArm"))  # one joint renamed
+    with pytest.raises(EngineError, match="the joints of its cmu weights but 'LinkerArm' where they have 'LeftArm';"):
+        ebf.clean(Observation(read_bvh(tmp_path / "r.bvh")))
 
 
 def test_ebf_beats_gaussian_on_a_held_out_walk(ebf, held_out_walk):

@@ -315,7 +315,14 @@ def read_bvh_text(tmp_path, text):
 def test_zero_frames(walk, tmp_path):
     text = _small(walk)
     head = text[: text.index("MOTION")]
-    _expect(tmp_path, head + "MOTION\nFrames: 0\nFrame Time: 0.0083333\n", "0 frames")
+    _expect(tmp_path, head + "MOTION\nFrames: 0\nFrame Time: 0.0083333\n", "'Frames:' must be at least 1, found '0'")
+    _expect(tmp_path, head + "MOTION\nFrames: -5\nFrame Time: 0.0083333\n", "'Frames:' must be at least 1, found '-5'")
+
+
+def test_tabs_between_the_words_of_the_motion_header(walk, tmp_path):
+    text = _small(walk)
+    tabbed = text.replace("Frame Time:", "Frame\tTime:\t").replace("Frames:", "Frames:\t")
+    assert np.array_equal(read_bvh_text(tmp_path, tabbed).channels, read_bvh_text(tmp_path, text).channels)
 
 
 def test_no_motion_section(walk, tmp_path):

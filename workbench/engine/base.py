@@ -224,7 +224,9 @@ def _checked_clean(clean):
     EngineError for an observation with no channel observed (an engine would make every
     value up), for a result of another frame count, rate or skeleton layout than the
     take's, and for one that is not finite everywhere, naming the engine and, for a
-    trained one, its weights (broken weights, a diverged training)."""
+    trained one, its weights (broken weights, a diverged training); and EngineError where
+    the user's :attr:`Engine.humanoid_overrides` do not fit the take's skeleton, for every
+    engine alike (a mapping file given for the take is checked, used or not)."""
 
     @functools.wraps(clean)
     def checked(self, observation, /, **kwargs):
@@ -235,6 +237,10 @@ def _checked_clean(clean):
             )
         if not observation.channel_observed.any():
             raise EngineError("no sample of the take is observed (every value is NaN or masked as missing)")
+        if self.humanoid_overrides:  # the user's --mapping fits the take, whether or not this engine maps it
+            from .view import body_skeleton
+
+            self.humanoid(body_skeleton(observation.skeleton))
         result = clean(self, observation, **kwargs)
         if not isinstance(result, CleanResult):
             raise TypeError(f"{self.info.name}.clean returned a {type(result).__name__}, not a CleanResult")
@@ -685,8 +691,7 @@ class Engine:
             return
         if self.skeleton_signature_ is not None and skeleton.signature() != self.skeleton_signature_:
             known = self.weights_skeletons_()
-            alike = [name for sig, name in known.items() if _signature_joints(sig) == list(skeleton.names)]
-            differs = f", the joints of its {alike[0]} weights with other channels or rotation orders" if alike else ""
+            differs = _naming_difference(list(skeleton.names), known)
             raise EngineError(
                 f"engine {self.info.name!r} has no weights for this skeleton ({skeleton.n_joints} body joints "
                 f"rooted at {skeleton.names[0]!r}{differs}; it has weights for "
@@ -1202,6 +1207,23 @@ def _teaches_nothing(motion: Motion) -> str | None:
 def _signature_joints(signature: str) -> list[str]:
     """The joint names of a skeleton signature (:meth:`Skeleton.signature`), in order."""
     return [part.split("<")[0] for part in signature.split(";") if part and not part.startswith("translated:")]
+
+
+def _naming_difference(names: list[str], known: Mapping[str, str]) -> str:
+    """For a message refusing a skeleton with joints ``names``: how it differs from the
+    nearest of the ``known`` weights' skeletons (signature -> folder name), where that is
+    one of the same joints (", the joints of its cmu weights with other channels ...")
+    or of the same count with up to 3 joints named otherwise; else ""."""
+    for signature, folder in known.items():
+        theirs = _signature_joints(signature)
+        if theirs == names:
+            return f", the joints of its {folder} weights with other channels or rotation orders"
+        renamed = [(ours, other) for ours, other in zip(names, theirs) if ours != other]
+        if len(theirs) == len(names) and len(renamed) <= 3:
+            return f", the joints of its {folder} weights but " + ", ".join(
+                f"{ours!r} where they have {other!r}" for ours, other in renamed
+            )
+    return ""
 
 
 def _describe_signature(signature: str) -> str:

@@ -215,7 +215,7 @@ def _parse_motion(
         text = next(lines, None)
         if text is None:
             raise MotionFileError(path, f"file ends before the '{label}' line", n - 1)
-        text = text.strip()
+        text = " ".join(text.split())  # 'Frame\tTime:' too: any whitespace between the words
         if not text.lower().startswith(label.lower()):
             raise MotionFileError(path, f"expected '{label} ...', found {text[:40]!r}", n)
         return text[len(label) :].strip()
@@ -229,7 +229,9 @@ def _parse_motion(
     except ValueError:
         raise MotionFileError(path, f"'Frames:' must be a whole number, found {frames_text!r}", start + 1) from None
     if n_frames <= 0:
-        raise MotionFileError(path, f"the file has {n_frames} frames: nothing to read", start + 1)
+        raise MotionFileError(
+            path, f"'Frames:' must be at least 1, found {frames_text!r}: no motion to read", start + 1
+        )
     ft_text = header(start + 2, "Frame Time:")
     try:
         frame_time = float(ft_text)
@@ -313,7 +315,8 @@ def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, pat
     if len(body) < n_frames:
         raise MotionFileError(
             path,
-            f"motion section is truncated: 'Frames:' says {n_frames} but only {len(body)} frame lines follow",
+            f"motion section is truncated: 'Frames:' says {n_frames} but only {len(body)} frame lines follow; if "
+            f"the file was cut short, copy it again, else set 'Frames:' to {len(body)} to read the frames it has",
             first + len(body) - 1 if body else first - 1,
         )
     if len(body) > n_frames:
