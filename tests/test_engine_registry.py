@@ -42,6 +42,8 @@ def test_unknown_engine_and_bad_params_are_clear():
         registry.create("identity:x=1")
     with pytest.raises(EngineError, match="name=value"):
         registry.create("identity:oops")
+    with pytest.raises(EngineError, match=r"'sigma_ms' given twice \(5 and 6\)"):
+        registry.create("gaussian:sigma_ms=5,sigma_ms=6")
 
 
 class Doubler(Engine):

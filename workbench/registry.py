@@ -57,12 +57,17 @@ def _import_class(path: str) -> type:
 
 
 def parse_options(text: str) -> dict[str, str]:
-    """``"a=1,b=x"`` -> ``{"a": "1", "b": "x"}``."""
+    """``"a=1,b=x"`` -> ``{"a": "1", "b": "x"}``; EngineError for an item that is not
+    name=value and for a name given twice (which value was meant?)."""
     options: dict[str, str] = {}
     for item in filter(None, (s.strip() for s in text.split(","))):
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
             raise EngineError(f"engine parameter {item!r} must look like name=value")
+        if key.strip() in options:
+            raise EngineError(
+                f"engine parameter {key.strip()!r} given twice ({options[key.strip()]} and {value.strip()})"
+            )
         options[key.strip()] = value.strip()
     return options
 
