@@ -385,10 +385,13 @@ def test_clean_says_where_an_autoencoder_left_a_long_hole_partly_to_lerp(embedde
     assert not any("linear" in n for n in quiet)
 
 
-def test_a_reference_frame_with_a_missing_value_is_cleaned_with_the_motion(embedded_root, tmp_path):
+def test_a_reference_frame_with_a_missing_value_is_refused_before_the_clean_or_cleaned_with_the_motion(
+    embedded_root, tmp_path
+):
     from workbench.data import find_clip, has_reference_frame
     from workbench.io import read_bvh
     from workbench.io.bvh import format_bvh
+    from workbench.io.errors import MotionFileError
     from workbench.registry import create
 
     walk = find_clip("cmu/walk/35_31", embedded_root).load(keep_reference=True).slice(0, 40)
@@ -400,7 +403,9 @@ def test_a_reference_frame_with_a_missing_value_is_cleaned_with_the_motion(embed
     lines[first] = " ".join(values)
     take = tmp_path / "damaged.bvh"
     take.write_text("\n".join(lines) + "\n")
-    assert not has_reference_frame(read_bvh(take))
-    report = batch.clean_file(create("lerp"), take, tmp_path / "out.bvh")
-    assert not any("reference frame" in note for note in report.notes)
+    assert has_reference_frame(read_bvh(take))  # still one: corrupt and inspect drop it as before
+    with pytest.raises(MotionFileError, match=r"damaged.bvh: frame 0, a T-pose reference .* \(--keep-reference\)"):
+        batch.clean_file(create("lerp"), take, tmp_path / "out.bvh")  # (written back, it would stop the write)
+    assert not (tmp_path / "out.bvh").exists()
+    batch.clean_file(create("lerp"), take, tmp_path / "out.bvh", keep_reference=True)
     assert np.isfinite(read_bvh(tmp_path / "out.bvh").channels).all()

@@ -119,6 +119,7 @@ def clean_file(
     Raises what reading and cleaning raise (MotionFileError, EngineError, ...)."""
     from .data import has_reference_frame
     from .io import read_motion, write_bvh
+    from .io.errors import MotionFileError
     from .io.mask import observed_take, take_mask
 
     source, output = Path(source), Path(output)
@@ -130,6 +131,12 @@ def clean_file(
     reference = None
     if has_reference_frame(motion) and not keep_reference:
         reference, motion = motion.channels[:1], motion.slice(1)
+        if not np.isfinite(reference).all():  # it would stop the write, after the whole clean
+            raise MotionFileError(
+                source,
+                "frame 0, a T-pose reference frame that clean writes back as it is, has a missing value (NaN): "
+                "mend it, or clean it with the motion (--keep-reference)",
+            )
         observed = None if observed is None else observed[1:]
         notes.append(
             f"frame 0 of {source} is a T-pose reference frame: written back as it is, not cleaned "

@@ -200,11 +200,24 @@ def _pins(args) -> dict[str, str | None] | None:
 
 def _pinned(engine, overrides: dict[str, str | None] | None):
     """``engine`` (each stage of a pipeline) with the canonical joints ``overrides`` pins
-    (:func:`_pins`), if any, for its universal weights."""
+    (:func:`_pins`), if any: for its universal weights and its turn upright, and checked
+    against every take it cleans."""
     if overrides:
         for stage in getattr(engine, "stages", [engine]):
             stage.humanoid_overrides = overrides
     return engine
+
+
+def _with_epochs(engine, epochs: int):
+    """``engine`` (each stage of a pipeline) with ``epochs`` wherever a stage trains in
+    epochs: ``--epochs`` wins over an ``epochs=`` in the spec (one copied from a manifest)."""
+    from .engine import Pipeline
+
+    stages = [
+        type(s)(dataclasses.replace(s.params, epochs=epochs)) if hasattr(s.params, "epochs") else s
+        for s in getattr(engine, "stages", [engine])
+    ]
+    return Pipeline(stages) if hasattr(engine, "stages") else stages[0]
 
 
 def cmd_inspect(args) -> int:
@@ -802,9 +815,7 @@ def cmd_train(args) -> int:
     if args.epochs is not None:
         if not any(hasattr(stage.params, "epochs") for stage in getattr(engine, "stages", [engine])):
             raise UserError(f"{engine.info.name} is fitted in closed form, not in epochs: leave out --epochs")
-        engine = registry.create(
-            args.engine + ("," if ":" in args.engine else ":") + f"epochs={args.epochs}", pretrained=False
-        )
+        engine = _with_epochs(engine, args.epochs)
     engine = _pinned(engine, _pins(args))
     if engine.weights_folder is not None:
         raise UserError(

@@ -442,6 +442,10 @@ def test_refuses_another_skeleton_naming_the_ones_it_has_weights_for(ebf, kick, 
     (tmp_path / "r.bvh").write_text(text.replace("JOINT LeftArm", "JOINT LinkerArm"))  # one joint renamed
     with pytest.raises(EngineError, match="the joints of its cmu weights but 'LinkerArm' where they have 'LeftArm';"):
         ebf.clean(Observation(read_bvh(tmp_path / "r.bvh")))
+    from workbench.engine.base import _naming_difference
+
+    known = {"Hips<-1>;Spine<0>;Head<1>": "renamed", "Hips<-1>;Spine<0>;LeftArm<1>": "same"}  # the same joints first
+    assert "its same weights with other channels" in _naming_difference(["Hips", "Spine", "LeftArm"], known)
 
 
 def test_ebf_beats_gaussian_on_a_held_out_walk(ebf, held_out_walk):

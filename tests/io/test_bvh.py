@@ -243,6 +243,7 @@ def test_truncated_motion_section(walk, tmp_path):
     text = _small(walk)
     err = _expect(tmp_path, "\n".join(text.splitlines()[:-2]) + "\n", "truncated")
     assert err.line is not None
+    assert "copy it again, else set 'Frames:' to the number of whole frame lines" in str(err)
 
 
 def test_wrong_number_of_values(walk, tmp_path):

@@ -87,8 +87,6 @@ def has_reference_frame(motion: Motion) -> bool:
     a, body = motion.angles_deg, angle_joints(motion.skeleton)
     if motion.n_frames < 3 or not len(body):  # (a lone root has no body pose to tell by)
         return False
-    if not np.isfinite(motion.channels[0]).all():  # a converter's rest frame is complete; this one is motion to fill
-        return False
     if not np.all(a[0, motion.skeleton.body_root] == 0.0):
         return False
     for frame in range(1, motion.n_frames):  # the first with an angle observed: missing ones (NaN) tell nothing

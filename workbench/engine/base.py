@@ -347,7 +347,9 @@ class Engine:
     #: its universal twin's, whose training parameters are the universal weights'; None
     #: where no clean picked weights (then :attr:`spec` says it)
     spec_used_: str | None = None
-    #: canonical joints pinned by the user (``--mapping``) for a skeleton-agnostic engine
+    #: canonical joints pinned by the user (``--mapping``): a skeleton-agnostic engine maps
+    #: the take with them, a trained one finds the take's up axis with them, and every
+    #: engine refuses a take they do not fit (:func:`_checked_clean`)
     humanoid_overrides: Mapping[str, str | None] | None = None
     #: the universal variant that cleans skeletons with no weights of their own (:meth:`universal_twin`)
     _universal_twin: "Engine | None" = None
@@ -1215,9 +1217,10 @@ def _naming_difference(names: list[str], known: Mapping[str, str]) -> str:
     one of the same joints (", the joints of its cmu weights with other channels ...")
     or of the same count with up to 3 joints named otherwise; else ""."""
     for signature, folder in known.items():
-        theirs = _signature_joints(signature)
-        if theirs == names:
+        if _signature_joints(signature) == names:
             return f", the joints of its {folder} weights with other channels or rotation orders"
+    for signature, folder in known.items():
+        theirs = _signature_joints(signature)
         renamed = [(ours, other) for ours, other in zip(names, theirs) if ours != other]
         if len(theirs) == len(names) and len(renamed) <= 3:
             return f", the joints of its {folder} weights but " + ", ".join(

@@ -316,7 +316,7 @@ def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, pat
         raise MotionFileError(
             path,
             f"motion section is truncated: 'Frames:' says {n_frames} but only {len(body)} frame lines follow; if "
-            f"the file was cut short, copy it again, else set 'Frames:' to {len(body)} to read the frames it has",
+            "the file was cut short, copy it again, else set 'Frames:' to the number of whole frame lines",
             first + len(body) - 1 if body else first - 1,
         )
     if len(body) > n_frames:
