@@ -288,10 +288,10 @@ def worker_engine(spec: str, mapping: str | None = None):
 
         engine = registry.create(spec)
         if mapping:
+            from .engine import with_humanoid_overrides
             from .io.mapping import read_mapping
 
-            for stage in getattr(engine, "stages", [engine]):
-                stage.humanoid_overrides = read_mapping(mapping)
+            with_humanoid_overrides(engine, read_mapping(mapping))
         _ENGINES[key] = engine
     return _ENGINES[key]
 

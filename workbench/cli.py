@@ -198,24 +198,17 @@ def _pins(args) -> dict[str, str | None] | None:
     return read_mapping(args.mapping) if args.mapping else None
 
 
-def _pinned(engine, overrides: dict[str, str | None] | None):
-    """``engine`` (each stage of a pipeline) with the canonical joints ``overrides`` pins
-    (:func:`_pins`), if any: for its universal weights and its turn upright, and checked
-    against every take it cleans."""
-    if overrides:
-        for stage in getattr(engine, "stages", [engine]):
-            stage.humanoid_overrides = overrides
-    return engine
-
-
 def _with_epochs(engine, epochs: int):
     """``engine`` (each stage of a pipeline) with ``epochs`` wherever a stage trains in
-    epochs: ``--epochs`` wins over an ``epochs=`` in the spec (one copied from a manifest)."""
+    epochs: ``--epochs`` wins over an ``epochs=`` in the spec (one copied from a manifest).
+    UserError where no stage does (fitted in closed form)."""
     from .engine import Pipeline
 
+    stages = getattr(engine, "stages", [engine])
+    if not any(hasattr(s.params, "epochs") for s in stages):
+        raise UserError(f"{engine.info.name} is fitted in closed form, not in epochs: leave out --epochs")
     stages = [
-        type(s)(dataclasses.replace(s.params, epochs=epochs)) if hasattr(s.params, "epochs") else s
-        for s in getattr(engine, "stages", [engine])
+        type(s)(dataclasses.replace(s.params, epochs=epochs)) if hasattr(s.params, "epochs") else s for s in stages
     ]
     return Pipeline(stages) if hasattr(engine, "stages") else stages[0]
 
@@ -229,6 +222,7 @@ def cmd_inspect(args) -> int:
     from .core.motion import Observation
     from .data import without_reference_frame
     from .data.inspection import FILL_REASONS, inspect_motion
+    from .engine import with_humanoid_overrides
     from .io.mask import observed_take, take_mask
 
     recorded = _read(args.take, args.unit)
@@ -238,7 +232,7 @@ def cmd_inspect(args) -> int:
     observed = observed_take(args.take, motion, None if observed is None else observed[dropped:]).observed
     weights, points, overrides = [], [], _pins(args)
     for spec in args.engine or []:
-        result = _pinned(registry.create(spec), overrides).clean(Observation(motion, observed))
+        result = with_humanoid_overrides(registry.create(spec), overrides).clean(Observation(motion, observed))
         points.append(result.motion.positions * motion.skeleton.unit_cm)
         if "robust_weight" in result.diagnostics:
             weights.append(result.diagnostics["robust_weight"])
@@ -417,6 +411,7 @@ def _settle_mask(take: Path, backed_up: bool) -> None:
 
 def cmd_clean(args) -> int:
     from . import registry
+    from .engine import with_humanoid_overrides
     from .io.mask import sidecar_path
 
     source = Path(args.input)
@@ -441,7 +436,9 @@ def cmd_clean(args) -> int:
             )
             _check_bvh_output(output)
     overrides = _pins(args)
-    engine = _pinned(registry.create(args.engine), overrides)  # a bad spec or weights stop here, before any take
+    engine = with_humanoid_overrides(
+        registry.create(args.engine), overrides
+    )  # a bad spec or weights stop here, before any take
     if not source.is_dir():
         from .batch import clean_file
 
@@ -805,7 +802,7 @@ def _weights_out(named: str | None, engine, overwrite: bool = False) -> Path:
 def cmd_train(args) -> int:
     from . import registry
     from .data import catalogue, select, share
-    from .engine import WEIGHTS_OPTION
+    from .engine import WEIGHTS_OPTION, with_humanoid_overrides
     from .engine.base import UNIVERSAL
     from .training import train_engine
 
@@ -813,10 +810,8 @@ def cmd_train(args) -> int:
     if not engine.info.trainable:
         raise UserError(f"engine {engine.info.name!r} has nothing to train")
     if args.epochs is not None:
-        if not any(hasattr(stage.params, "epochs") for stage in getattr(engine, "stages", [engine])):
-            raise UserError(f"{engine.info.name} is fitted in closed form, not in epochs: leave out --epochs")
         engine = _with_epochs(engine, args.epochs)
-    engine = _pinned(engine, _pins(args))
+    engine = with_humanoid_overrides(engine, _pins(args))
     if engine.weights_folder is not None:
         raise UserError(
             f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "

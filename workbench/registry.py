@@ -61,14 +61,12 @@ def parse_options(text: str) -> dict[str, str]:
     name=value and for a name given twice (which value was meant?)."""
     options: dict[str, str] = {}
     for item in filter(None, (s.strip() for s in text.split(","))):
-        key, eq, value = item.partition("=")
-        if not eq or not key.strip():
+        key, eq, value = (part.strip() for part in item.partition("="))
+        if not eq or not key:
             raise EngineError(f"engine parameter {item!r} must look like name=value")
-        if key.strip() in options:
-            raise EngineError(
-                f"engine parameter {key.strip()!r} given twice ({options[key.strip()]} and {value.strip()})"
-            )
-        options[key.strip()] = value.strip()
+        if key in options:
+            raise EngineError(f"engine parameter {key!r} given twice ({options[key]} and {value})")
+        options[key] = value
     return options
 
 

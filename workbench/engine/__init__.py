@@ -32,6 +32,7 @@ from .base import (
     param_roles,
     trained,
     training,
+    with_humanoid_overrides,
 )
 
 __all__ = [
@@ -50,4 +51,5 @@ __all__ = [
     "TRAINED",
     "TRAINING",
     "INFERENCE",
+    "with_humanoid_overrides",
 ]

@@ -1085,6 +1085,16 @@ class Engine:
         return self._universal_twin
 
 
+def with_humanoid_overrides(engine: Engine, overrides: Mapping[str, str | None] | None) -> Engine:
+    """``engine`` with the user's canonical joints ``overrides`` (a ``--mapping`` file,
+    :func:`workbench.io.mapping.read_mapping`), if any, on each of its stages (itself, or
+    a pipeline's): :attr:`Engine.humanoid_overrides`. Returns the same engine."""
+    if overrides:
+        for stage in getattr(engine, "stages", [engine]):
+            stage.humanoid_overrides = overrides
+    return engine
+
+
 class Pipeline(Engine):
     """``a>b``: stage a fills gaps, then b cleans the filled motion as fully observed.
 
