@@ -38,6 +38,10 @@ def test_observation_bridged_is_what_the_engines_bridge(walk):
 def test_unknown_engine_and_bad_params_are_clear():
     with pytest.raises(EngineError, match="unknown engine 'nope'; available: .*identity"):
         registry.create("nope")
+    with pytest.raises(EngineError, match="unknown engine 'GAUSSIAN'; did you mean 'gaussian'"):
+        registry.create("GAUSSIAN")
+    with pytest.raises(EngineError, match="unknown engine 'kalmann'; did you mean 'kalman'"):
+        registry.create("kalmann")
     with pytest.raises(EngineError, match="has no parameter 'x'"):
         registry.create("identity:x=1")
     with pytest.raises(EngineError, match="name=value"):

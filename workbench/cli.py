@@ -215,6 +215,10 @@ def _with_epochs(engine, epochs: int):
 
 def cmd_inspect(args) -> int:
     if args.measure:
+        if args.take is not None:
+            raise UserError(
+                f"inspect --measure scores the flags on catalogue clips, not on a take: leave out {args.take}"
+            )
         return _measure_inspection(args)
     if args.take is None:
         raise UserError("inspect needs a TAKE, or --measure")

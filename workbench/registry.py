@@ -12,6 +12,7 @@ the committed weights.
 
 from __future__ import annotations
 
+import difflib
 import importlib
 from importlib.metadata import entry_points
 
@@ -41,7 +42,10 @@ def get(name: str) -> type:
         return _registered[name]
     eps = _entry_points()
     if name not in eps:
-        raise EngineError(f"unknown engine {name!r}; available: {', '.join(available())}")
+        names = available()
+        near = difflib.get_close_matches(name.lower(), names, n=1)
+        hint = f"did you mean {near[0]!r}? " if near else ""
+        raise EngineError(f"unknown engine {name!r}; {hint}available: {', '.join(names)}")
     try:
         return eps[name].load()
     except Exception as err:  # a broken plugin must not take the whole program down

@@ -216,6 +216,8 @@ def test_errors_that_depend_on_the_clip(walk):
         parse_corruption(f"block:10,{F - 10}").apply(walk)
     with pytest.raises(CorruptionApplyError, match="joints:30.*at most 24"):
         parse_corruption("joints:30").apply(walk)
+    with pytest.raises(CorruptionApplyError, match="take of 1 frame.*at least 2 frames"):
+        parse_corruption("joints:3").apply(walk.slice(0, 1))
     for seed in (-1, 1.5, "0", True):
         with pytest.raises(CorruptionApplyError, match="seed"):
             parse_corruption("angular:0.5").apply(walk, seed=seed)
