@@ -49,7 +49,7 @@ import numpy as np
 
 from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, known_at
 from workbench.core.kinematics import forward_kinematics, joint_positions, local_rotations, short_lever_joints
-from workbench.core.motion import Motion, Observation, channel_mask, channel_matrix, position_unknown
+from workbench.core.motion import Motion, Observation, blended, channel_mask, channel_matrix, position_unknown
 from workbench.core.skeleton import Skeleton
 from workbench.engine import TRAINED, CleanResult, Engine, EngineError, param_roles, trained, training
 from workbench.engine.signal import bridge_gaps, normalized_gaussian, rewrap_angles
@@ -151,7 +151,10 @@ class TrainingParams:
     ``universal``: the image holds the canonical humanoid instead of the take's joints
     (:mod:`.bodies`), so the weights train on several skeletons together and clean any
     that maps onto it; a plain engine with no weights for a take's skeleton cleans it
-    with the committed universal weights (:meth:`Engine.universal_twin`)."""
+    with the committed universal weights (:meth:`Engine.universal_twin`).
+    ``universal_share``: a take whose skeleton has weights of its own is cleaned with them
+    and with the committed universal weights, and the two cleans blended, this share the
+    universal's (0: the own weights alone; the clean then costs twice)."""
 
     epochs: int = training(120)
     frames_per_epoch: int = training(100_000)
@@ -185,6 +188,7 @@ class TrainingParams:
     output_sigma_frames: float = 1.5
     miss_fade_s: float = 1.0
     trial_holes: bool = True
+    universal_share: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("epochs", "frames_per_epoch", "window_frames", "batch_size"):
@@ -221,6 +225,8 @@ class TrainingParams:
             )
         if not (np.isfinite(self.miss_fade_s) and self.miss_fade_s >= 0):
             raise ValueError(f"miss_fade_s must be 0 (off) or a positive time in seconds, got {self.miss_fade_s}")
+        if not 0 <= self.universal_share <= 1:
+            raise ValueError(f"universal_share must be 0 (off) to 1, got {self.universal_share}")
 
 
 class ConvAutoencoderEngine(Engine):
@@ -509,13 +515,22 @@ class ConvAutoencoderEngine(Engine):
         The take is cleaned in the engine's view of it (:meth:`model_view`: body-rooted,
         at the rate of the weights) and the result put back on it; a take whose skeleton
         has no committed weights of its own by the universal variant's committed weights
-        (:meth:`Engine.universal_twin`; :attr:`weights_used_` says which were used)."""
+        (:meth:`Engine.universal_twin`; :attr:`weights_used_` says which were used). With
+        ``universal_share`` the clean on weights of the skeleton's own is blended that far
+        towards the universal variant's clean of the take (:func:`workbench.core.motion.blended`;
+        :meth:`Engine.committed_universal`)."""
         if (result := self.universal_clean(observation, constraints=constraints)) is not None:  # no own weights
             return result
         view = self.model_view(observation)
-        if constraints:
-            constraints = {view.joint(j): (view.frames(f), P) for j, (f, P) in constraints.items()}
-        return view.restore(self._clean(view.observation, constraints), self.params.keep_observed)
+        guides = constraints and {view.joint(j): (view.frames(f), P) for j, (f, P) in constraints.items()}
+        result = view.restore(self._clean(view.observation, guides), self.params.keep_observed)
+        share = self.params.universal_share
+        if share and (partner := self.committed_universal()) is not None:
+            own = self.weights_used_
+            other = partner.clean(observation, constraints=constraints)
+            result = CleanResult(blended(result.motion, other.motion, share), result.diagnostics)
+            self.weights_used_ = f"{own}, blended {share:g} towards {partner.weights_used_}"
+        return result
 
     def imaging(self, skeleton: Skeleton, layout: Layout) -> OwnJoints | CanonicalJoints:
         """The body the image of a take of ``skeleton`` (a body view) holds (:mod:`.bodies`):

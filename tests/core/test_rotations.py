@@ -149,3 +149,30 @@ def test_euler_axes_turn_a_rotated_vector_as_its_angles_do(order, a, v):
     np.testing.assert_allclose(np.linalg.norm(axes, axis=-1), 1.0)
     locked = rot.euler_axes(np.array([30.0, 90.0, -20.0]), order)
     np.testing.assert_allclose(np.abs(locked[0] @ locked[2]), 1.0)
+
+
+def test_blended_takes_move_each_rotation_along_the_shorter_arc(walk):
+    from workbench.core.motion import blended
+
+    a = walk.slice(0, 40)
+    rng = np.random.default_rng(0)
+    angles = a.angles_deg + rng.uniform(-20.0, 20.0, a.angles_deg.shape)
+    angles[:, 3] = a.angles_deg[:, 3]  # a joint the two agree on
+    b = a.replace(angles_deg=angles + 360.0 * (angles < 0), root_positions=a.root_positions + 10.0)
+    mixed = blended(a, b, 0.3)
+    np.testing.assert_array_equal(mixed.angles_deg[:, 3], a.angles_deg[:, 3])
+    np.testing.assert_allclose(mixed.root_positions, a.root_positions + 3.0)
+    assert np.abs(mixed.angles_deg - a.angles_deg).max() < 30.0  # the triples nearest a's, not b's shifted ones
+    orders = a.skeleton.rotation_orders
+    R = {
+        name: [rot.euler_to_matrix(m.angles_deg[:, j], o) for j, o in enumerate(orders)]
+        for name, m in (("a", a), ("b", b), ("mix", mixed))
+    }
+    for j in range(a.skeleton.n_joints):
+        whole = rot.rotation_angle_deg(R["a"][j], R["b"][j])
+        first, rest = rot.rotation_angle_deg(R["a"][j], R["mix"][j]), rot.rotation_angle_deg(R["mix"][j], R["b"][j])
+        np.testing.assert_allclose(first + rest, whole, atol=1e-4)  # on the arc from a to b
+        np.testing.assert_allclose(first, 0.3 * whole, atol=0.02 * whole.max() + 1e-4)
+    assert blended(a, b, 0.0).allclose(a, atol=1e-9) and blended(a, b, 1.0).allclose(b, atol=1e-9)
+    with pytest.raises(ValueError, match="share must be 0 to 1"):
+        blended(a, b, 1.5)

@@ -198,3 +198,21 @@ def test_the_plain_cae_cleans_a_skeleton_without_weights_on_the_committed_univer
         assert other.weights_used_.startswith("universal weights ") and f"{name}-universal" in other.weights_used_
     with pytest.raises(EngineError, match="no weights for this skeleton"):
         registry.create("ebd").clean(obs)
+
+
+def test_universal_share_blends_the_own_weights_clean_towards_the_universal_one(walk):
+    """``cae:universal_share=0.3`` on a CMU take: the CMU weights' clean moved 0.3 of the
+    way towards the universal weights' clean, both named in its weights line."""
+    from workbench import registry
+    from workbench.core.motion import blended
+
+    obs = parse_corruption("block:30").apply(walk.slice(0, 120), seed=0)
+    engine = registry.create("cae:universal_share=0.3")
+    result = engine.clean(obs)
+    own, universal = (registry.create(spec).clean(obs).motion for spec in ("cae", "cae:universal=true"))
+    np.testing.assert_array_equal(result.motion.channels, blended(own, universal, 0.3).channels)
+    assert not np.allclose(own.channels, universal.channels, atol=0.1)  # a blend of two different cleans
+    assert engine.weights_used_.startswith("skeleton-specific weights ")
+    assert "blended 0.3 towards universal weights " in engine.weights_used_
+    with pytest.raises(EngineError, match="universal_share must be 0 \\(off\\) to 1"):
+        registry.create("cae:universal_share=2")

@@ -341,7 +341,9 @@ class Engine:
     loaded_from_: Path | None = None
     #: which weights the last clean used, for its output line and the app: "skeleton-specific
     #: weights FOLDER" or "universal weights FOLDER" (a universal variant's, also where a plain
-    #: engine's skeleton has none of its own: :meth:`universal_twin`); None: fitted here
+    #: engine's skeleton has none of its own: :meth:`universal_twin`), the first followed by
+    #: ", blended SHARE towards universal weights FOLDER" where an engine mixes the two
+    #: (``cae:universal_share``); None: fitted here
     weights_used_: str | None = None
     #: the spec of the engine that ran the last clean, for its output line: this one's, or
     #: its universal twin's, whose training parameters are the universal weights'; None
@@ -1065,12 +1067,26 @@ class Engine:
         EngineError
             As :meth:`load` (a trained parameter the universal weights do not have).
         """
-        if self.skeleton_agnostic or not hasattr(self.params, UNIVERSAL) or self.weights_folder is not None:
+        if self.skeleton_agnostic or self.weights_folder is not None:
             return None
         if self.loaded_from_ is None or self.loaded_from_.parent != self.default_weights_dir():
             return None
         if skeleton.signature() == self.skeleton_signature_ or skeleton.signature() in self.committed_weights():
             return None  # weights of its own (loaded already: no manifests read on every clean)
+        return self.committed_universal()
+
+    def committed_universal(self) -> "Engine | None":
+        """This engine's parameters with :data:`UNIVERSAL` true, on the universal variant's
+        committed weights (loaded once); None for a variant that is universal already, or
+        whose class has no universal form or none committed.
+
+        Raises
+        ------
+        EngineError
+            As :meth:`load` (a trained parameter the universal weights do not have).
+        """
+        if self.skeleton_agnostic or not hasattr(self.params, UNIVERSAL):
+            return None
         if self._universal_twin is None:
             try:
                 params = dataclasses.replace(self.params, **{UNIVERSAL: True})
