@@ -42,7 +42,7 @@ History and results: docs/engines/cae.md.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -152,9 +152,11 @@ class TrainingParams:
     (:mod:`.bodies`), so the weights train on several skeletons together and clean any
     that maps onto it; a plain engine with no weights for a take's skeleton cleans it
     with the committed universal weights (:meth:`Engine.universal_twin`).
-    ``universal_share``: a take whose skeleton has weights of its own is cleaned with them
-    and with the committed universal weights, and the two cleans blended, this share the
-    universal's (0: the own weights alone; the clean then costs twice)."""
+    ``universal_share``: a take whose skeleton has weights of its own (committed, or
+    ``weights=DIR``) is cleaned with them and with the committed universal weights, and the
+    two cleans blended, this share the universal's (:func:`workbench.core.motion.blended`);
+    twice the cost of a clean. 0: the own weights alone. Not with constraints, which the
+    blend would not keep."""
 
     epochs: int = training(120)
     frames_per_epoch: int = training(100_000)
@@ -227,6 +229,8 @@ class TrainingParams:
             raise ValueError(f"miss_fade_s must be 0 (off) or a positive time in seconds, got {self.miss_fade_s}")
         if not 0 <= self.universal_share <= 1:
             raise ValueError(f"universal_share must be 0 (off) to 1, got {self.universal_share}")
+        if self.universal and self.universal_share:
+            raise ValueError("universal_share blends a skeleton's own weights with the universal ones, not universal's")
 
 
 class ConvAutoencoderEngine(Engine):
@@ -516,21 +520,32 @@ class ConvAutoencoderEngine(Engine):
         at the rate of the weights) and the result put back on it; a take whose skeleton
         has no committed weights of its own by the universal variant's committed weights
         (:meth:`Engine.universal_twin`; :attr:`weights_used_` says which were used). With
-        ``universal_share`` the clean on weights of the skeleton's own is blended that far
-        towards the universal variant's clean of the take (:func:`workbench.core.motion.blended`;
-        :meth:`Engine.committed_universal`)."""
+        ``universal_share`` and no constraints the clean on weights of the skeleton's own is
+        blended that far towards the universal variant's clean of the take
+        (:func:`workbench.core.motion.blended`; :meth:`Engine.committed_universal`); an
+        EngineError where no universal weights are committed for its trained parameters."""
         if (result := self.universal_clean(observation, constraints=constraints)) is not None:  # no own weights
             return result
         view = self.model_view(observation)
         guides = constraints and {view.joint(j): (view.frames(f), P) for j, (f, P) in constraints.items()}
         result = view.restore(self._clean(view.observation, guides), self.params.keep_observed)
         share = self.params.universal_share
-        if share and (partner := self.committed_universal()) is not None:
+        if share and not constraints:
+            if (partner := self.committed_universal()) is None:
+                raise EngineError(
+                    f"universal_share blends with the committed weights of {self.info.name}:universal=true and these "
+                    "trained parameters, and there are none: leave out universal_share"
+                )
             own = self.weights_used_
-            other = partner.clean(observation, constraints=constraints)
+            other = partner.clean(observation)
             result = CleanResult(blended(result.motion, other.motion, share), result.diagnostics)
             self.weights_used_ = f"{own}, blended {share:g} towards {partner.weights_used_}"
         return result
+
+    def universal_params(self) -> TrainingParams:
+        """This engine's parameters with ``universal`` true and no ``universal_share`` (a
+        universal variant has no weights of a skeleton's own to blend)."""
+        return replace(self.params, universal=True, universal_share=0.0)
 
     def imaging(self, skeleton: Skeleton, layout: Layout) -> OwnJoints | CanonicalJoints:
         """The body the image of a take of ``skeleton`` (a body view) holds (:mod:`.bodies`):

@@ -157,11 +157,15 @@ def test_blended_takes_move_each_rotation_along_the_shorter_arc(walk):
     a = walk.slice(0, 40)
     rng = np.random.default_rng(0)
     angles = a.angles_deg + rng.uniform(-20.0, 20.0, a.angles_deg.shape)
+    angles += 360.0 * (angles < 0)  # triples far from a's, as nearest_euler must undo
     angles[:, 3] = a.angles_deg[:, 3]  # a joint the two agree on
-    b = a.replace(angles_deg=angles + 360.0 * (angles < 0), root_positions=a.root_positions + 10.0)
+    root = a.root_positions + 10.0
+    root[:, 1] = a.root_positions[:, 1]  # and a coordinate
+    b = a.replace(angles_deg=angles, root_positions=root)
     mixed = blended(a, b, 0.3)
     np.testing.assert_array_equal(mixed.angles_deg[:, 3], a.angles_deg[:, 3])
-    np.testing.assert_allclose(mixed.root_positions, a.root_positions + 3.0)
+    np.testing.assert_array_equal(mixed.root_positions[:, 1], a.root_positions[:, 1])
+    np.testing.assert_allclose(mixed.root_positions[:, ::2], a.root_positions[:, ::2] + 3.0)
     assert np.abs(mixed.angles_deg - a.angles_deg).max() < 30.0  # the triples nearest a's, not b's shifted ones
     orders = a.skeleton.rotation_orders
     R = {
@@ -176,3 +180,5 @@ def test_blended_takes_move_each_rotation_along_the_shorter_arc(walk):
     assert blended(a, b, 0.0).allclose(a, atol=1e-9) and blended(a, b, 1.0).allclose(b, atol=1e-9)
     with pytest.raises(ValueError, match="share must be 0 to 1"):
         blended(a, b, 1.5)
+    with pytest.raises(ValueError, match="one skeleton, rate and length"):
+        blended(a, b.slice(1), 0.3)

@@ -202,7 +202,9 @@ def test_the_plain_cae_cleans_a_skeleton_without_weights_on_the_committed_univer
 
 def test_universal_share_blends_the_own_weights_clean_towards_the_universal_one(walk):
     """``cae:universal_share=0.3`` on a CMU take: the CMU weights' clean moved 0.3 of the
-    way towards the universal weights' clean, both named in its weights line."""
+    way towards the universal weights' clean, both named in its weights line; observed
+    samples kept exactly with keep_observed; constraints, which a blend would not keep,
+    are the own weights' alone; refused where no universal weights are at hand."""
     from workbench import registry
     from workbench.core.motion import blended
 
@@ -214,5 +216,25 @@ def test_universal_share_blends_the_own_weights_clean_towards_the_universal_one(
     assert not np.allclose(own.channels, universal.channels, atol=0.1)  # a blend of two different cleans
     assert engine.weights_used_.startswith("skeleton-specific weights ")
     assert "blended 0.3 towards universal weights " in engine.weights_used_
-    with pytest.raises(EngineError, match="universal_share must be 0 \\(off\\) to 1"):
-        registry.create("cae:universal_share=2")
+
+    kept = registry.create("cae:universal_share=0.3,keep_observed=true").clean(obs).motion.channels
+    seen = obs.channel_observed
+    np.testing.assert_array_equal(kept[seen], obs.motion.channels[seen])
+
+    hand = walk.skeleton.index("LeftHand")
+    frame = int(np.flatnonzero(~obs.observed[:, 0])[10])
+    guide = {hand: (np.array([frame]), walk.positions[frame, hand][None] + 5.0)}
+    np.testing.assert_array_equal(
+        engine.clean(obs, constraints=guide).motion.channels,
+        registry.create("cae").clean(obs, constraints=guide).motion.channels,
+    )
+
+    engine.committed_universal = lambda: None  # as for weights whose trained parameters no universal ones have
+    with pytest.raises(EngineError, match="universal_share blends with the committed weights of cae:universal=true"):
+        engine.clean(obs)
+    for spec, message in (
+        ("cae:universal_share=2", "0 \\(off\\) to 1"),
+        ("cae:universal=true,universal_share=0.3", "not"),
+    ):
+        with pytest.raises(EngineError, match=message):
+            registry.create(spec)

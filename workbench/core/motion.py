@@ -170,20 +170,21 @@ def blended(a: Motion, b: Motion, share: float) -> Motion:
     rate and frames (two engines' cleans of one take): root positions and translations
     linearly; each joint's rotation by normalised quaternion interpolation along the
     shorter arc (within a hair of slerp for the few degrees two cleans differ by), written
-    as the Euler triple in the joint's order nearest to ``a``'s. A joint's triple that is
-    the same in both (kept observed samples) is ``a``'s, bit for bit.
+    as the Euler triple in the joint's order nearest to ``a``'s. A value (a root
+    coordinate, a translation, a joint's triple) that is the same in both, as kept observed
+    samples are, is ``a``'s bit for bit.
 
     Raises
     ------
     ValueError
-        ``share`` outside 0 to 1, or takes of different shapes.
+        ``share`` outside 0 to 1, or takes of different skeletons, rates or lengths.
     """
     from .rotations import euler_to_matrix, matrix_to_euler, matrix_to_quaternion, nearest_euler, quaternion_to_matrix
 
     if not 0.0 <= share <= 1.0:
         raise ValueError(f"share must be 0 to 1, got {share}")
-    if a.angles_deg.shape != b.angles_deg.shape or a.translations.shape != b.translations.shape:
-        raise ValueError(f"takes of {a.angles_deg.shape} and {b.angles_deg.shape} angles cannot be blended")
+    if a.skeleton.names != b.skeleton.names or a.fps != b.fps or a.n_frames != b.n_frames:
+        raise ValueError("only two takes of one skeleton, rate and length can be blended")
     angles = a.angles_deg.copy()
     for order in dict.fromkeys(a.skeleton.rotation_orders):
         joints = [j for j, o in enumerate(a.skeleton.rotation_orders) if o == order]
@@ -192,10 +193,14 @@ def blended(a: Motion, b: Motion, share: float) -> Motion:
         mixed = matrix_to_euler(quaternion_to_matrix((1.0 - share) * qa + share * qb), order)
         angles[:, joints] = nearest_euler(mixed, a.angles_deg[:, joints])
     same = np.all(a.angles_deg == b.angles_deg, axis=-1, keepdims=True)
+
+    def linear(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.where(x == y, x, (1.0 - share) * x + share * y)
+
     return a.replace(
-        root_positions=(1.0 - share) * a.root_positions + share * b.root_positions,
+        root_positions=linear(a.root_positions, b.root_positions),
         angles_deg=np.where(same, a.angles_deg, angles),
-        translations=(1.0 - share) * a.translations + share * b.translations,
+        translations=linear(a.translations, b.translations),
     )
 
 

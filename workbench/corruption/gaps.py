@@ -117,10 +117,8 @@ class Joints(Model):
 
     def corrupt(self, work: Work, rng: np.random.Generator) -> None:
         eligible = self.eligible(work)
-        if work.n_frames < 2:
-            raise CorruptionApplyError(
-                f"{self}: a take of {work.n_frames} frame has no joint whose angles vary; it needs at least 2 frames"
-            )
+        if self.n > eligible.size and work.n_frames < 2:
+            raise CorruptionApplyError(f"{self}: a take of one frame has no joint whose angles vary; use 2 or more")
         if self.n > eligible.size:
             raise CorruptionApplyError(
                 f"{self}: this skeleton has only {eligible.size} non-root joints whose angles vary; "

@@ -353,7 +353,7 @@ class Engine:
     #: the take with them, a trained one finds the take's up axis with them, and every
     #: engine refuses a take they do not fit (:func:`_checked_clean`)
     humanoid_overrides: Mapping[str, str | None] | None = None
-    #: the universal variant that cleans skeletons with no weights of their own (:meth:`universal_twin`)
+    #: the committed universal variant, loaded once (:meth:`committed_universal`)
     _universal_twin: "Engine | None" = None
 
     def __init_subclass__(cls, **kwargs) -> None:
@@ -1075,6 +1075,16 @@ class Engine:
             return None  # weights of its own (loaded already: no manifests read on every clean)
         return self.committed_universal()
 
+    def universal_params(self):
+        """This engine's parameters for its universal variant: :data:`UNIVERSAL` true.
+
+        Raises
+        ------
+        ValueError
+            The variant has no universal form.
+        """
+        return dataclasses.replace(self.params, **{UNIVERSAL: True})
+
     def committed_universal(self) -> "Engine | None":
         """This engine's parameters with :data:`UNIVERSAL` true, on the universal variant's
         committed weights (loaded once); None for a variant that is universal already, or
@@ -1089,7 +1099,7 @@ class Engine:
             return None
         if self._universal_twin is None:
             try:
-                params = dataclasses.replace(self.params, **{UNIVERSAL: True})
+                params = self.universal_params()
             except ValueError:  # no universal form of this variant (mssa's angle space)
                 return None
             twin = type(self)(params)
