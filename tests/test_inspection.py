@@ -150,7 +150,9 @@ def test_inspect_reads_the_mask_sidecar_and_runs_engines(embedded_walk, tmp_path
     assert {"spike", "rejected", "disagree"} <= reasons
     assert main(["inspect", str(take), "--mask", str(tmp_path / "nope.json")]) == 2
     assert main(["inspect"]) == 2 and "needs a TAKE" in capsys.readouterr().err
-    assert main(["inspect", str(take), "--measure"]) == 2 and "leave out" in capsys.readouterr().err
+    assert main(["inspect", str(take), "--measure"]) == 2 and f"leave out {take}" in capsys.readouterr().err
+    assert main(["inspect", "--measure", "--json", "--unit", "cm"]) == 2
+    assert "leave out --unit, --json" in capsys.readouterr().err
     assert main(["inspect", str(take)]) == 0
     assert f"the missing samples are those {take}.mask.json lists" in capsys.readouterr().err
     assert main(["inspect", str(_write(embedded_walk, tmp_path))]) == 0  # no mask: no note of one

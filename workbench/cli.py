@@ -215,9 +215,11 @@ def _with_epochs(engine, epochs: int):
 
 def cmd_inspect(args) -> int:
     if args.measure:
-        if args.take is not None:
+        given = [args.take] if args.take is not None else []
+        given += [f"--{name}" for name in ("mask", "mapping", "unit", "json") if getattr(args, name)]
+        if given:
             raise UserError(
-                f"inspect --measure scores the flags on catalogue clips, not on a take: leave out {args.take}"
+                f"inspect --measure scores the flags on catalogue clips, not on a take: leave out {', '.join(given)}"
             )
         return _measure_inspection(args)
     if args.take is None:
