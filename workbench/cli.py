@@ -442,9 +442,8 @@ def cmd_clean(args) -> int:
             )
             _check_bvh_output(output)
     overrides = _pins(args)
-    engine = with_humanoid_overrides(
-        registry.create(args.engine), overrides
-    )  # a bad spec or weights stop here, before any take
+    # a bad spec or weights stop here, before any take
+    engine = with_humanoid_overrides(registry.create(args.engine), overrides)
     if not source.is_dir():
         from .batch import clean_file
 
