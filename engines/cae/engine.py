@@ -539,7 +539,7 @@ class ConvAutoencoderEngine(Engine):
             own = self.weights_used_
             other = partner.clean(observation)
             result = CleanResult(blended(result.motion, other.motion, share), result.diagnostics)
-            self.weights_used_ = f"{own}, blended {share:g} towards {partner.weights_used_}"
+            self.weights_used_ = f"{own} blended {share:g} towards {partner.weights_used_}"
         return result
 
     def universal_params(self) -> TrainingParams:

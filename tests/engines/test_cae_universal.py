@@ -9,6 +9,7 @@ import torch
 
 from engines.cae import CAE
 from engines.cae.training import WindowSampler
+from workbench.app.take import EngineRun
 from workbench.core.humanoid import map_humanoid
 from workbench.core.kinematics import forward_kinematics
 from workbench.corruption import parse_corruption
@@ -216,6 +217,8 @@ def test_universal_share_blends_the_own_weights_clean_towards_the_universal_one(
     assert not np.allclose(own.channels, universal.channels, atol=0.1)  # a blend of two different cleans
     assert engine.weights_used_.startswith("skeleton-specific weights ")
     assert "blended 0.3 towards universal weights " in engine.weights_used_
+    assert ", " not in engine.weights_used_  # a pipeline's output line separates its stages so
+    assert EngineRun("cae", None, weights=engine.weights_used_).weights_kind == "own and universal weights"
 
     kept = registry.create("cae:universal_share=0.3,keep_observed=true").clean(obs).motion.channels
     seen = obs.channel_observed

@@ -208,11 +208,15 @@ class EngineRun:
 
     @property
     def weights_kind(self) -> str | None:
-        """Which weights, short enough for a pane title: universal ones, or the skeleton's
-        own ("universal weights", "own weights"); None for an engine with no weights."""
+        """Which weights, short enough for a pane title: universal ones, the skeleton's
+        own, or its own blended with universal ones (``cae:universal_share``): "universal
+        weights", "own weights", "own and universal weights"; None for an engine with no
+        weights."""
         if not self.weights:
             return None
-        return "universal weights" if self.weights.startswith("universal") else "own weights"
+        if self.weights.startswith("universal"):
+            return "universal weights"
+        return "own and universal weights" if " towards universal weights " in self.weights else "own weights"
 
     @property
     def filter_sigma_frames(self) -> np.ndarray | None:

@@ -342,8 +342,9 @@ class Engine:
     #: which weights the last clean used, for its output line and the app: "skeleton-specific
     #: weights FOLDER" or "universal weights FOLDER" (a universal variant's, also where a plain
     #: engine's skeleton has none of its own: :meth:`universal_twin`), the first followed by
-    #: ", blended SHARE towards universal weights FOLDER" where an engine mixes the two
-    #: (``cae:universal_share``); None: fitted here
+    #: " blended SHARE towards universal weights FOLDER" where an engine mixes the two
+    #: (``cae:universal_share``; no comma, which separates a pipeline's stages); None:
+    #: fitted here
     weights_used_: str | None = None
     #: the spec of the engine that ran the last clean, for its output line: this one's, or
     #: its universal twin's, whose training parameters are the universal weights'; None
