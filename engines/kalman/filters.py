@@ -25,7 +25,11 @@ estimated noise std is within ~10 % of the true one and the smoothed error is wi
 
 ``measurement_noise_deg2`` / ``process_noise_deg2_per_frame4`` > 0 fix ``r`` / ``q`` for
 every joint-angle channel (root rotation included) instead; the root position and
-translation channels, in other units, always use the estimates. Gaps are bridged by the smoother itself.
+translation channels, in other units, always use the estimates. Gaps are bridged by the smoother itself;
+before a channel's first observation and after its last, its smoothed value there is held
+(:func:`~workbench.core.channels.hold_ends`: Lou and Chai's random walk's prediction). The
+constant-velocity model would run on at the end's velocity, two to three times further
+off over 0.25-2 s at a take's ends (docs/engines/kalman.md, *A take's ends*).
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from workbench.core.channels import hold_ends
 from workbench.core.motion import Observation, length_columns
 from workbench.engine import CleanResult, Engine, EngineInfo
 from workbench.engine.signal import bridge_gaps, prepare
@@ -103,7 +108,7 @@ class Kalman(Engine):
             self.params.process_noise_deg2_per_frame4,
             length_columns(observation.skeleton),
         )
-        return CleanResult(observation.motion.with_channels(p.output(Y)))
+        return CleanResult(observation.motion.with_channels(p.output(Y if p.complete else hold_ends(Y, p.mask))))
 
     @staticmethod
     def estimate_noise(observation: Observation) -> tuple[np.ndarray, np.ndarray]:

@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from workbench.core.channels import gap_distance, hole_length, interpolate_gaps, retime, rewrap_deg, unwrap_deg
+from workbench.core.channels import (
+    gap_distance,
+    hold_ends,
+    hole_length,
+    interpolate_gaps,
+    retime,
+    rewrap_deg,
+    unwrap_deg,
+)
 from workbench.core.rotations import wrap_deg
 
 
@@ -128,3 +136,14 @@ def test_rewrap_puts_unwrapped_angles_back_on_the_reference_s_branch_in_place_or
     assert not np.array_equal(Y, copied)  # the default leaves its input as it was
     with pytest.raises(ValueError, match="float64"):  # a converted copy would be shifted, silently
         rewrap_deg(Y.astype(np.float32), reference, observed, copy=False)
+
+
+def test_hold_ends_holds_each_columns_first_and_last_observation_and_keeps_the_rest():
+    X = np.arange(24.0).reshape(6, 4)
+    observed = np.ones((6, 4), bool)
+    observed[:2, 0] = observed[-1, 0] = False  # held at both ends
+    observed[2:4, 1] = False  # a gap inside: untouched
+    observed[:, 2] = False  # no observation: as it is
+    out = hold_ends(X, observed)
+    np.testing.assert_array_equal(out[:, 0], [8.0, 8.0, 8.0, 12.0, 16.0, 16.0])
+    np.testing.assert_array_equal(out[:, 1:], X[:, 1:])

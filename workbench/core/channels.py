@@ -27,6 +27,17 @@ def forward_fill(X: np.ndarray, observed: np.ndarray) -> np.ndarray:
     return out
 
 
+def hold_ends(X: np.ndarray, observed: np.ndarray) -> np.ndarray:
+    """``X`` (F, D) with each column's samples before its first observation and after its
+    last replaced by its values there (a new array); columns with no observation as they
+    are. The frames between are untouched, gaps included."""
+    F = X.shape[0]
+    first = np.argmax(observed, axis=0)
+    last = F - 1 - np.argmax(observed[::-1], axis=0)
+    idx = np.clip(np.arange(F)[:, None], first, last)  # no observation: 0 and F - 1, every frame itself
+    return np.take_along_axis(X, idx, axis=0)
+
+
 def unwrap_deg(X: np.ndarray, observed: np.ndarray | None = None, *, robust: bool = False) -> np.ndarray:
     """Unwrap angle columns (F, D) along time: each sample is put within 180 degrees of
     the one before (``np.unwrap``) or, ``robust``, of the median of the three unwrapped
