@@ -536,7 +536,7 @@ class ConvAutoencoderEngine(Engine):
                     f"universal_share blends with the committed weights of {self.info.name}:universal=true and these "
                     "trained parameters, and there are none: leave out universal_share"
                 )
-            own = self.weights_used_
+            own = self.weights_used_ or "skeleton-specific weights fitted in this process"
             other = partner.clean(observation)
             result = CleanResult(blended(result.motion, other.motion, share), result.diagnostics)
             self.weights_used_ = f"{own} blended {share:g} towards {partner.weights_used_}"
@@ -948,8 +948,8 @@ def anchored_trajectory(
     ground: np.ndarray, theta: np.ndarray, root_known: np.ndarray, step: float = 1.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """The root's floor points (F, 3) and headings (F,) radians where ``root_known`` (F,),
-    smoothed by the ``kalman`` engine's constant-velocity smoother with the noise levels
-    it estimates from them (on the captured frames, ``step`` apart), and its fill where
+    smoothed by the constant-velocity smoother (:func:`workbench.engine.smoothing.smooth_and_fill`)
+    with the noise levels it estimates from them (on the captured frames, ``step`` apart), and its fill where
     the root is unknown. The image is root-relative, so a noisy root would otherwise
     shake the whole body: every joint's rows would carry the root's noise, and the
     decoded pose would be put back on the noisy track. Across a gap inside the take the

@@ -28,8 +28,8 @@ every joint-angle channel (root rotation included) instead; the root position an
 translation channels, in other units, always use the estimates. Gaps are bridged by the smoother itself;
 before a channel's first observation and after its last, its smoothed value there is held
 (:func:`~workbench.core.channels.hold_ends`: Lou and Chai's random walk's prediction). The
-constant-velocity model would run on at the end's velocity, two to three times further
-off over 0.25-2 s at a take's ends (docs/engines/kalman.md, *A take's ends*).
+constant-velocity model would run on at the end's velocity, 1.4 to 3.4 times further off
+over 0.25-2 s at a take's ends (docs/engines/kalman.md, *A take's ends*).
 """
 
 from __future__ import annotations

@@ -19,8 +19,8 @@ Per channel u = (x - c) / s: c the take's own median (robust to outliers, and it
 offsets the training subjects do not share with new performers), s the RMS deviation from those
 medians pooled over the training frames, floored at 1 degree or 1 cm. Channels that never vary within
 a training take are held at the take's median; a channel never observed starts at its training mean.
-The root is not stationary, so no short-window bases describe it: it is smoothed by the ``kalman``
-engine's smoother (:func:`workbench.engine.smoothing.smooth_observed`), as position noise reaches it.
+The root is not stationary, so no short-window bases describe it: it is smoothed by the
+constant-velocity smoother (:func:`workbench.engine.smoothing.smooth_observed`), as position noise reaches it.
 ``output="motion"`` returns the minimiser z of Eq. 11, as the paper does; ``"reconstruction"`` the
 mean of the covering windows' E c_s. ``robust_weight`` (F, C): the final data weight exp(-r^2 / p^2)
 of each filtered entry, 0 where missing, 1 or 0 on channels not filtered; in positions on the take's

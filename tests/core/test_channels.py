@@ -144,6 +144,9 @@ def test_hold_ends_holds_each_columns_first_and_last_observation_and_keeps_the_r
     observed[:2, 0] = observed[-1, 0] = False  # held at both ends
     observed[2:4, 1] = False  # a gap inside: untouched
     observed[:, 2] = False  # no observation: as it is
+    observed[:, 3] = np.arange(6) == 4  # one observation: everywhere
     out = hold_ends(X, observed)
     np.testing.assert_array_equal(out[:, 0], [8.0, 8.0, 8.0, 12.0, 16.0, 16.0])
-    np.testing.assert_array_equal(out[:, 1:], X[:, 1:])
+    np.testing.assert_array_equal(out[:, 1:3], X[:, 1:3])
+    np.testing.assert_array_equal(out[:, 3], 19.0)
+    np.testing.assert_array_equal(hold_ends(X[:1], observed[:1]), X[:1])

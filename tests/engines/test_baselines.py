@@ -366,16 +366,19 @@ def test_butterworth_clear_errors(clip):
 @pytest.mark.parametrize("spec", ["kalman", "kalman-learned"])
 def test_kalman_fills_a_constant_velocity_ramp_exactly_and_holds_its_ends(spec, clip, learned):
     """Inside the take the model's path is the ramp itself; beyond the first and last
-    observations the value there is held, not run on at the ramp's velocity."""
+    observations the value there is held, not run on at the ramp's velocity; also where
+    the ramp wraps round +-180 degrees."""
     ramp = -40.0 + 0.35 * np.arange(clip.n_frames)
+    wrapped = wrap_deg(170.0 + 0.35 * np.arange(clip.n_frames))
     obs = np.ones((clip.n_frames, clip.skeleton.n_joints), bool)
     obs[120:200, 7] = False
     obs[:15, 7] = obs[-20:, 7] = False
     engine = learned if spec == "kalman-learned" else create(spec)
-    out = engine.clean(Observation(_one_channel(clip, ramp), obs)).motion.channels[:, 3 + 3 * 7 + 1]
-    np.testing.assert_allclose(out[15:-20], ramp[15:-20], atol=1e-4)
-    np.testing.assert_allclose(out[:15], ramp[15], atol=1e-4)
-    np.testing.assert_allclose(out[-20:], ramp[-21], atol=1e-4)
+    for channel in (ramp, wrapped):
+        out = engine.clean(Observation(_one_channel(clip, channel), obs)).motion.channels[:, 3 + 3 * 7 + 1]
+        np.testing.assert_allclose(wrap_deg(out[15:-20] - channel[15:-20]), 0.0, atol=1e-4)
+        np.testing.assert_allclose(wrap_deg(out[:15] - channel[15]), 0.0, atol=1e-4)
+        np.testing.assert_allclose(wrap_deg(out[-20:] - channel[-21]), 0.0, atol=1e-4)
 
 
 def test_kalman_noise_estimate_for_known_white_noise():

@@ -197,8 +197,9 @@ class EngineRun:
     """One engine's result on a take: the cleaned track, its diagnostics (arrays with the
     frame axis first), the time its clean took (s; loading the engine and its weights
     not counted, as in ``workbench clean``) and which weights it used
-    (:attr:`workbench.engine.Engine.weights_used_`: "universal weights FOLDER" or
-    "skeleton-specific weights FOLDER"; None for an engine with none)."""
+    (:attr:`workbench.engine.Engine.weights_used_`: "universal weights FOLDER",
+    "skeleton-specific weights FOLDER", the latter "blended SHARE towards universal weights
+    FOLDER"; None for an engine with none)."""
 
     spec: str
     track: Track

@@ -1223,7 +1223,8 @@ class Pipeline(Engine):
                 diagnostics[key if last else f"{stage.info.name}.{key}"] = value
             observation = Observation(result.motion)
         assert result is not None
-        # "KIND weights ebd FOLDER, ebf FOLDER"; KIND universal where any stage ran on such
+        # "KIND weights ebd FOLDER, ebf FOLDER"; KIND universal where any stage ran on such (a
+        # blended stage's FOLDER reads "FOLDER blended SHARE towards universal weights FOLDER")
         used = [(s.info.name, *s.weights_used_.split(" weights ", 1)) for s in self.stages if s.weights_used_]
         kind = "universal" if any(k == "universal" for _, k, _ in used) else "skeleton-specific"
         self.weights_used_ = f"{kind} weights " + ", ".join(f"{n} {folder}" for n, _, folder in used) if used else None
