@@ -26,10 +26,11 @@ estimated noise std is within ~10 % of the true one and the smoothed error is wi
 ``measurement_noise_deg2`` / ``process_noise_deg2_per_frame4`` > 0 fix ``r`` / ``q`` for
 every joint-angle channel (root rotation included) instead; the root position and
 translation channels, in other units, always use the estimates. Gaps are bridged by the smoother itself;
-before a channel's first observation and after its last, its smoothed value there is held
-(:func:`~workbench.core.channels.hold_ends`: Lou and Chai's random walk's prediction). The
-constant-velocity model would run on at the end's velocity, 1.4 to 3.4 times further off
-over 0.25-2 s at a take's ends (docs/engines/kalman.md, *A take's ends*).
+before an angle channel's first observation and after its last, its smoothed value there is
+held (:func:`hold_angle_ends`: Lou and Chai's random walk's prediction), where the
+constant-velocity model's path, run on at the end's velocity, is 1.4 to 3.4 times further
+off over 0.25-2 s; the root's position keeps that path, which follows a walker 2-5 times
+nearer than a held one (docs/engines/kalman.md, *A take's ends*).
 """
 
 from __future__ import annotations
@@ -73,6 +74,19 @@ def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_an
     return Y, (q, r)
 
 
+def hold_angle_ends(Y: np.ndarray, mask: np.ndarray, lengths) -> np.ndarray:
+    """A smoothed channel matrix ``Y`` (F, D) with each angle channel (all but the
+    ``lengths`` columns) held at its value at its first and last observed frame of ``mask``
+    (F, D) beyond them (:func:`workbench.core.channels.hold_ends`); ``Y`` itself where
+    nothing is missing, else a new array."""
+    if mask.all():
+        return Y
+    angles = np.setdiff1d(np.arange(Y.shape[1]), lengths)
+    out = Y.copy()
+    out[:, angles] = hold_ends(Y[:, angles], mask[:, angles])
+    return out
+
+
 class Kalman(Engine):
     """Constant-velocity Kalman filter + RTS smoother per channel (Lou and Chai's general
     Kalman filter baseline), noise estimated from the data unless given."""
@@ -101,14 +115,15 @@ class Kalman(Engine):
 
     def clean(self, observation: Observation, /) -> CleanResult:
         p = prepare(observation)
+        lengths = length_columns(observation.skeleton)
         Y, _ = smooth_channels(
             p.bridged,
             p.mask,
             self.params.measurement_noise_deg2,
             self.params.process_noise_deg2_per_frame4,
-            length_columns(observation.skeleton),
+            lengths,
         )
-        return CleanResult(observation.motion.with_channels(p.output(Y if p.complete else hold_ends(Y, p.mask))))
+        return CleanResult(observation.motion.with_channels(p.output(hold_angle_ends(Y, p.mask, lengths))))
 
     @staticmethod
     def estimate_noise(observation: Observation) -> tuple[np.ndarray, np.ndarray]:

@@ -26,8 +26,8 @@ difference; SURE); the learnt part is the *shape* of Q, its correlation matrix `
 shrunk towards the identity by ``correlation_shrinkage``: ``Q = S ((1-a) C + a I) S`` with
 ``S = diag(sqrt(q_kalman))``. With ``learned_dynamics`` the fitted A1, A2, c replace the
 constant-velocity ones. The root position and rotation, and channels constant in the
-observation, are cleaned by ``kalman``; beyond a channel's first and last observation its
-smoothed value there is held, as in ``kalman``.
+observation, are cleaned by ``kalman``; beyond an angle channel's first and last observation
+its smoothed value there is held, as in ``kalman``.
 
 Choices (the paper does not give its model): per joint, not one full-body model (a small state
 and few parameters to fit from a few thousand frames, and a gap, a whole joint missing, never
@@ -47,13 +47,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from workbench.core.channels import hold_ends, unwrap_deg
-from workbench.core.motion import Motion, Observation, joint_angle_columns
+from workbench.core.channels import unwrap_deg
+from workbench.core.motion import Motion, Observation, joint_angle_columns, length_columns
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 from workbench.engine.signal import prepare
 
 from .coupled import coupled_smooth
-from .filters import smooth_channels
+from .filters import hold_angle_ends, smooth_channels
 
 #: ridge on the dynamics regression, relative to the regressors' mean variance
 DYNAMICS_RIDGE = 1e-2
@@ -226,4 +226,4 @@ class LearnedKalman(Engine):
             keep = live.ravel()
             flat_cols = cols.ravel()[keep]
             Y[:, flat_cols] = Z.reshape(F, -1)[:, keep]
-        return CleanResult(motion.with_channels(p.output(Y if p.complete else hold_ends(Y, p.mask))))  # as kalman
+        return CleanResult(motion.with_channels(p.output(hold_angle_ends(Y, p.mask, length_columns(motion.skeleton)))))

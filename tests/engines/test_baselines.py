@@ -365,9 +365,9 @@ def test_butterworth_clear_errors(clip):
 # -- kalman ---------------------------------------------------------------------------
 @pytest.mark.parametrize("spec", ["kalman", "kalman-learned"])
 def test_kalman_fills_a_constant_velocity_ramp_exactly_and_holds_its_ends(spec, clip, learned):
-    """Inside the take the model's path is the ramp itself; beyond the first and last
-    observations the value there is held, not run on at the ramp's velocity; also where
-    the ramp wraps round +-180 degrees."""
+    """Inside the take the model's path is the ramp itself; beyond an angle's first and
+    last observations the value there is held, not run on at the ramp's velocity, also
+    where the ramp wraps round +-180 degrees; the root's position runs on."""
     ramp = -40.0 + 0.35 * np.arange(clip.n_frames)
     wrapped = wrap_deg(170.0 + 0.35 * np.arange(clip.n_frames))
     obs = np.ones((clip.n_frames, clip.skeleton.n_joints), bool)
@@ -379,6 +379,12 @@ def test_kalman_fills_a_constant_velocity_ramp_exactly_and_holds_its_ends(spec, 
         np.testing.assert_allclose(wrap_deg(out[15:-20] - channel[15:-20]), 0.0, atol=1e-4)
         np.testing.assert_allclose(wrap_deg(out[:15] - channel[15]), 0.0, atol=1e-4)
         np.testing.assert_allclose(wrap_deg(out[-20:] - channel[-21]), 0.0, atol=1e-4)
+    X = clip.channels
+    X[:, 0] = 0.5 * np.arange(clip.n_frames)  # the root walks along x at constant speed
+    walk = clip.with_channels(X)
+    obs[:, 0] = obs[:, 7]
+    out = engine.clean(Observation(walk, obs)).motion.channels[:, 0]
+    np.testing.assert_allclose(out, walk.channels[:, 0], atol=1e-3)
 
 
 def test_kalman_noise_estimate_for_known_white_noise():
