@@ -29,7 +29,7 @@ translation channels, in other units, always use the estimates. Gaps are bridged
 before an angle channel's first observation and after its last, its smoothed value there is
 held (:func:`hold_angle_ends`: Lou and Chai's random walk's prediction), where the
 constant-velocity model's path, run on at the end's velocity, is 1.4 to 3.4 times further
-off over 0.25-2 s; the root's position keeps that path, which follows a walker 2-5 times
+off over 0.25-2 s; the root's position keeps that path, which follows a walker 2-6 times
 nearer than a held one (docs/engines/kalman.md, *A take's ends*).
 """
 
