@@ -41,7 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from workbench.core.channels import hold_ends
-from workbench.core.motion import Observation, length_columns
+from workbench.core.motion import Observation, angle_slice, length_columns
+from workbench.core.skeleton import Skeleton
 from workbench.engine import CleanResult, Engine, EngineInfo
 from workbench.engine.signal import bridge_gaps, prepare
 from workbench.engine.smoothing import cv_smooth, estimate_noise, measurement_variance, smoothing_ratio
@@ -74,14 +75,14 @@ def smooth_channels(X: np.ndarray, mask: np.ndarray, r_angles: float = 0.0, q_an
     return Y, (q, r)
 
 
-def hold_angle_ends(Y: np.ndarray, mask: np.ndarray, lengths) -> np.ndarray:
-    """A smoothed channel matrix ``Y`` (F, D) with each angle channel (all but the
-    ``lengths`` columns) held at its value at its first and last observed frame of ``mask``
-    (F, D) beyond them (:func:`workbench.core.channels.hold_ends`); ``Y`` itself where
-    nothing is missing, else a new array."""
+def hold_angle_ends(Y: np.ndarray, mask: np.ndarray, skeleton: Skeleton) -> np.ndarray:
+    """A smoothed channel matrix ``Y`` (F, D) of ``skeleton`` with each angle channel
+    (:func:`workbench.core.motion.angle_slice`) held at its value at its first and last
+    observed frame of ``mask`` (F, D) beyond them (:func:`workbench.core.channels.hold_ends`);
+    ``Y`` itself where nothing is missing, else a new array."""
     if mask.all():
         return Y
-    angles = np.setdiff1d(np.arange(Y.shape[1]), lengths)
+    angles = angle_slice(skeleton)
     out = Y.copy()
     out[:, angles] = hold_ends(Y[:, angles], mask[:, angles])
     return out
@@ -115,15 +116,14 @@ class Kalman(Engine):
 
     def clean(self, observation: Observation, /) -> CleanResult:
         p = prepare(observation)
-        lengths = length_columns(observation.skeleton)
         Y, _ = smooth_channels(
             p.bridged,
             p.mask,
             self.params.measurement_noise_deg2,
             self.params.process_noise_deg2_per_frame4,
-            lengths,
+            length_columns(observation.skeleton),
         )
-        return CleanResult(observation.motion.with_channels(p.output(hold_angle_ends(Y, p.mask, lengths))))
+        return CleanResult(observation.motion.with_channels(p.output(hold_angle_ends(Y, p.mask, observation.skeleton))))
 
     @staticmethod
     def estimate_noise(observation: Observation) -> tuple[np.ndarray, np.ndarray]:

@@ -48,7 +48,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from workbench.core.channels import unwrap_deg
-from workbench.core.motion import Motion, Observation, joint_angle_columns, length_columns
+from workbench.core.motion import Motion, Observation, joint_angle_columns
 from workbench.engine import CleanResult, Engine, EngineError, EngineInfo
 from workbench.engine.signal import prepare
 
@@ -226,4 +226,4 @@ class LearnedKalman(Engine):
             keep = live.ravel()
             flat_cols = cols.ravel()[keep]
             Y[:, flat_cols] = Z.reshape(F, -1)[:, keep]
-        return CleanResult(motion.with_channels(p.output(hold_angle_ends(Y, p.mask, length_columns(motion.skeleton)))))
+        return CleanResult(motion.with_channels(p.output(hold_angle_ends(Y, p.mask, motion.skeleton))))
