@@ -66,8 +66,32 @@ def test_pickled_arrays_are_never_unpickled(saved):
     manifest = json.loads((saved / MANIFEST_FILE).read_text(encoding="utf-8"))
     manifest["sha256"] = weights.sha256_file(saved / WEIGHTS_FILE)  # a matching checksum
     (saved / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
-    with pytest.raises(EngineError, match="unreadable weights"):
+    with pytest.raises(EngineError, match="unreadable weights .it holds objects that only unpickling would read"):
         load_weights(saved)
+
+
+def _resigned(folder: Path) -> None:
+    """The manifest in ``folder`` made to match its weights file again (checksum, digest)."""
+    manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
+    manifest["sha256"] = weights.sha256_file(folder / WEIGHTS_FILE)
+    (folder / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
+
+
+def test_bytes_that_are_no_archive_are_refused_without_advice_to_unpickle(saved):
+    (saved / WEIGHTS_FILE).write_bytes(b"hello")
+    _resigned(saved)
+    with pytest.raises(EngineError, match=r"not a .npz archive of arrays\); retrain the engine or restore") as info:
+        load_weights(saved)
+    assert "pickle" not in str(info.value)
+
+
+def test_a_weights_file_that_cannot_be_read_or_a_file_named_as_the_folder_is_refused(saved):
+    (saved / WEIGHTS_FILE).unlink()
+    (saved / WEIGHTS_FILE).mkdir()  # a folder where the file should be
+    with pytest.raises(EngineError, match="unreadable weights file .a folder where a file should be"):
+        load_weights(saved)
+    with pytest.raises(EngineError, match="a file; weights are a folder .the one holding manifest.json.: name that"):
+        load_weights(saved / MANIFEST_FILE)
 
 
 def test_a_manifest_that_cannot_be_written_leaves_the_old_weights_as_they_were(saved):
@@ -166,6 +190,20 @@ def test_weights_swapped_for_another_engines_are_refused(tmp_path):
     for spec in ("mssa", "cae", "ebf"):
         with pytest.raises(EngineError, match=f"these weights are for engine 'kalman-learned', not '{spec}'"):
             registry.create(f"{spec}:weights={folder}")
+
+
+def test_a_signed_manifest_with_a_parameter_of_the_wrong_kind_is_refused(tmp_path):
+    import shutil
+
+    from workbench import registry
+
+    folder = tmp_path / "w"
+    shutil.copytree(registry.create("ebf").default_weights_dir() / "cmu", folder)
+    manifest = json.loads((folder / MANIFEST_FILE).read_text(encoding="utf-8"))
+    manifest["params"]["lstm_units"] = "many"
+    (folder / MANIFEST_FILE).write_text(json.dumps(weights.signed(manifest)), encoding="utf-8")
+    with pytest.raises(EngineError, match=r"parameters of the wrong kind \(lstm_units='many'\)"):
+        registry.create(f"ebf:weights={folder}")
 
 
 def test_no_code_of_the_package_can_unpickle_a_file():

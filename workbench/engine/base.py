@@ -904,6 +904,12 @@ class Engine:
                 f"({', '.join(unknown)}): they are from another version of it; retrain them"
             )
         fixed = {k: saved.get(k, getattr(default, k)) for k, role in roles.items() if role != INFERENCE}
+        declared = {f.name: f.type for f in dataclasses.fields(default)}
+        if wrong := [f"{k}={v!r}" for k, v in fixed.items() if not _of_type(v, declared[k])]:
+            raise EngineError(
+                f"{folder}: these weights record parameters of the wrong kind ({', '.join(wrong)}): they are damaged "
+                "or not this engine's; retrain them"
+            )
         asked = {k: v for k, v in _of_role(self.params, TRAINED).items() if v != getattr(default, k) and v != fixed[k]}
         if asked:
             raise EngineError(
@@ -1110,6 +1116,19 @@ class Engine:
                 return None
             self._universal_twin = twin.load(folders[0])
         return self._universal_twin
+
+
+def _of_type(value: object, declared: object) -> bool:
+    """Whether a parameter's recorded ``value`` fits its ``declared`` type (the field's
+    annotation, a string under postponed evaluation): a bool for bool, a whole number for
+    int, a number for float, text for str; any value for other types."""
+    name = getattr(declared, "__name__", declared)
+    if name == "bool":
+        return isinstance(value, bool)
+    if name in ("int", "float"):
+        kinds = int if name == "int" else (int, float)
+        return isinstance(value, kinds) and not isinstance(value, bool)
+    return isinstance(value, str) if name == "str" else True
 
 
 def with_humanoid_overrides(engine: Engine, overrides: Mapping[str, str | None] | None) -> Engine:

@@ -198,12 +198,14 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     """
     folder = Path(folder)
     manifest_path = folder / MANIFEST_FILE
+    if folder.is_file():
+        raise EngineError(f"{folder}: a file; weights are a folder (the one holding {MANIFEST_FILE}): name that")
     try:
         manifest = json.loads(manifest_path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise EngineError(f"{manifest_path}: no weights manifest here; train the engine first") from None
     except (OSError, ValueError) as err:
-        raise EngineError(f"{manifest_path}: unreadable weights manifest ({err})") from None
+        raise EngineError(f"{manifest_path}: unreadable weights manifest ({_reason(err)})") from None
     if not isinstance(manifest, dict) or not isinstance(manifest.get("skeleton_signature"), str):
         raise EngineError(f"{manifest_path}: not a weights manifest (an object with the skeleton it was trained for)")
     version = manifest.get("format_version", 1)
@@ -230,7 +232,11 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     path = folder / name
     if not path.exists():
         raise EngineError(f"{path}: the weights file named by the manifest is missing")
-    if sha256_file(path) != manifest.get("sha256"):
+    try:
+        digest = sha256_file(path)
+    except OSError as err:
+        raise EngineError(f"{path}: unreadable weights file ({_reason(err)})") from None
+    if digest != manifest.get("sha256"):
         raise EngineError(
             f"{path}: checksum does not match its manifest; the file is corrupt or was changed. "
             "Retrain the engine or restore the file."
@@ -238,10 +244,29 @@ def load_weights(folder: str | Path) -> tuple[dict[str, np.ndarray], dict]:
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
+        if not_arrays := [k for k, a in arrays.items() if not isinstance(a, np.ndarray)]:
+            raise ValueError(f"its member {not_arrays[0]!r} is no array")
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as err:
-        raise EngineError(f"{path}: unreadable weights ({err or type(err).__name__})") from None
+        # np.load's refusals of pickles say to allow them: the wrong advice for weights
+        if "allow_pickle" not in str(err):
+            reason = _reason(err)
+        elif zipfile.is_zipfile(path):
+            reason = "it holds objects that only unpickling would read, and weights are never unpickled"
+        else:
+            reason = "not a .npz archive of arrays"
+        raise EngineError(f"{path}: unreadable weights ({reason}); retrain the engine or restore the file") from None
     _refuse_non_finite(arrays, str(path))
     return arrays, manifest
+
+
+def _reason(err: BaseException) -> str:
+    """Why a file could not be read, in words: a permission or a folder named as the file
+    by name, else the error's own text (its type where it has none)."""
+    if isinstance(err, PermissionError):
+        return "no permission to read it: check its owner and mode"
+    if isinstance(err, IsADirectoryError):
+        return "a folder where a file should be"
+    return str(err) or type(err).__name__
 
 
 def _refuse_non_finite(
