@@ -325,6 +325,7 @@ ASF_CASES = {
     "missing bonedata": (TINY_ASF[TINY_ASF.index(":bonedata") :], "", ("orientation 0 0 0", 1), "no :bonedata"),
     "no direction": ("     direction 1 0 0\n", "", ("begin", 2), "no 'direction'"),
     "non-number length": ("length 3", "length three", ("length three", 1), "'three' is not a number"),
+    "control character": ("name hip", "name h\x01ip", ("name h\x01ip", 1), "holds the control character 0x01"),
     "short axis": ("axis 0 0 90 XYZ", "axis 0 0", ("axis 0 0", 1), "needs 3 numbers"),
     "unknown bone in hierarchy": ("hip leg", "hip arm", ("hip arm", 1), "'arm'"),
     "bone not attached": ("    hip leg\n", "", ("begin", 2), "'leg' is not attached"),
@@ -350,6 +351,8 @@ AMC_CASES = {
     "too many values": ("leg 90", "leg 90 0", ("leg 90 0", 1), "has 2 values"),
     "too few values": ("root 1 10 0 0 90 0", "root 1 10 0 0 90", ("root 1 10 0 0 90", 1), "has 5 values"),
     "non-number": ("leg -90", "leg abc", ("leg abc", 1), "'abc' is not a number"),
+    "NaN": ("leg -90", "leg nan", ("leg nan", 1), "nan is no position or angle"),
+    "absurd value": ("leg -90", "leg 1e308", ("leg 1e308", 1), "1e+308 is no position or angle"),
     "unknown bone": ("leg 90", "arm 90", ("arm 90", 1), "unknown bone 'arm'"),
     "zero frames": (TINY_AMC[TINY_AMC.index("1\n") :], "", (":DEGREES", 1), "no frames"),
     "truncated last frame": ("leg -90\n", "", ("root 1 10 0 0 90 0", 1), "has no values for leg"),
@@ -368,6 +371,12 @@ def test_bad_amc(tmp_path, case):
     err = info.value
     assert err.path == str(amc) and err.line == line
     assert str(err).startswith(f"{amc}:{line}: ") and words in str(err)
+
+
+def test_an_asf_given_as_the_take_says_to_pass_the_amc(tmp_path):
+    asf, _ = _write(tmp_path)
+    with pytest.raises(MotionFileError, match="an ASF file is a skeleton, with no motion: pass the take's .amc"):
+        read_motion(asf)
 
 
 def test_unreadable_and_missing_files(tmp_path):

@@ -14,6 +14,10 @@ def read_motion(path: str | Path, unit_cm: float | None = None) -> Motion:
     """Read a BVH file, or a CMU AMC file (its ASF skeleton beside it); ``unit_cm``: the
     size of its length unit in cm, where the one guessed from its rest pose is wrong."""
     path = Path(path)
+    if path.suffix.lower() == ".asf":
+        raise MotionFileError(
+            path, "an ASF file is a skeleton, with no motion: pass the take's .amc file (its .asf is found beside it)"
+        )
     if path.suffix.lower() == ".amc":
         from .asfamc import read_amc
 

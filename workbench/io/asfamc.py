@@ -42,7 +42,7 @@ from ..core.motion import Motion
 from ..core.rotations import axis_rotation, matrix_to_euler, nearest_euler
 from ..core.skeleton import Skeleton
 from .errors import MotionFileError
-from .limits import MAX_JOINTS, read_lines
+from .limits import MAX_ABS_VALUE, MAX_JOINTS, name_fault, read_lines
 
 #: ASF bone names of the CMU skeleton -> joint names of the cgspeed BVH conversion
 #: (same tree and joint order; the hip joints and clavicles are the BVH's fixed
@@ -243,6 +243,8 @@ def _parse_asf(path: Path) -> AsfModel:
             elif kind == "name":
                 if len(words) != 2:
                     fail("'name' needs exactly one bone name", n)
+                if (fault := name_fault(words[1])) is not None:
+                    fail(f"bone name {words[1]!r} {fault}", n)
                 current.name = words[1]
             elif kind == "direction":
                 current.direction = _numbers(words[1:], 3, f"bone {current.name!r} 'direction'", path, n)
@@ -509,10 +511,16 @@ def _parse_amc(lines: list[str], model: AsfModel, path: Path) -> tuple[list[np.n
                     if not _is_float(w):
                         raise MotionFileError(path, f"bone {names[j]!r}: {w!r} is not a number", n) from None
             raise
-        bad = ~np.isfinite(arr)
+        with np.errstate(invalid="ignore"):
+            bad = ~(np.abs(arr) <= MAX_ABS_VALUE)  # NaN, infinite or absurd
         if bad.any():
-            r = int(np.argwhere(bad)[0, 0])
-            raise MotionFileError(path, f"bone {names[j]!r}: non-finite value", where[j][r])
+            r, c = (int(i) for i in np.argwhere(bad)[0])
+            raise MotionFileError(
+                path,
+                f"bone {names[j]!r}: {arr[r, c]:g} is no position or angle (an AMC marks no value missing: "
+                f"each lies within +-{MAX_ABS_VALUE:g}); mend the line or cut the take before it",
+                where[j][r],
+            )
         values.append(arr)
     return values, angle_scale
 

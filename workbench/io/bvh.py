@@ -29,7 +29,7 @@ from ..core.motion import Motion
 from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
 from .atomic import atomic_path
 from .errors import MotionFileError
-from .limits import MAX_JOINTS, MIN_FRAME_TIME, Lines
+from .limits import MAX_ABS_VALUE, MAX_JOINTS, MIN_FRAME_TIME, Lines, name_fault
 
 
 class _Tokens:
@@ -75,7 +75,10 @@ class _Tokens:
         while (tok := next(self._stream, None)) is not None and tok[1] == line and tok[0] != "{":
             words.append(tok[0])
         self._back = tok
-        return " ".join(words), line
+        name = " ".join(words)
+        if (fault := name_fault(name)) is not None:
+            raise MotionFileError(self.path, f"{what} {name!r} {fault}", line)
+        return name, line
 
     def give_back(self, tok: tuple[str, int]) -> None:
         """Make ``tok`` the next token again."""
@@ -251,9 +254,16 @@ def _parse_motion(
     values = _compiled_frames(lines.rest(), n_frames, D)
     if values is None:
         values = _frames_line_by_line(list(lines), start + 3, n_frames, D, path)
-    if np.isinf(values).any():
-        n = int(np.argwhere(np.isinf(values))[0, 0])
-        raise MotionFileError(path, f"frame {n}: infinite value", start + 3 + n)
+    with np.errstate(invalid="ignore"):  # NaN marks a missing value
+        absurd = np.abs(values) > MAX_ABS_VALUE
+    if absurd.any():
+        n, c = (int(i) for i in np.argwhere(absurd)[0])
+        raise MotionFileError(
+            path,
+            f"frame {n}: {values[n, c]:g} in channel {c + 1}, beyond the +-{MAX_ABS_VALUE:g} any position or angle "
+            "lies within; write nan there to mark it missing",
+            start + 3 + n,
+        )
     decimals = None if "e" in ft_text.lower() else len(ft_text.partition(".")[2])  # as printed: 0.0417 to 4
     return fps_from_frame_time(frame_time, decimals), values
 
@@ -301,6 +311,14 @@ def _compiled_frames(rest: tuple[bytes, int] | None, n_frames: int, D: int) -> n
     return frame[:, :D].to_numpy()
 
 
+def _is_frame(line: str, D: int) -> bool:
+    """Whether ``line`` holds a frame's ``D`` numbers."""
+    try:
+        return _numbers(line.strip()).size == D
+    except ValueError:
+        return False
+
+
 def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, path: str) -> np.ndarray:
     """The (F, D) values of the frame lines ``body``, the first of them line number
     ``first``: any whitespace between numbers, trailing blank lines ignored; a
@@ -313,11 +331,23 @@ def _frames_line_by_line(body: list[str], first: int, n_frames: int, D: int, pat
             path, f"a blank line among the frame lines: delete it, or put a frame's {D} values there", first + blank
         )
     if len(body) < n_frames:
+        whole = len(body) - (1 if body and not _is_frame(body[-1], D) else 0)  # the last line may be cut off
         raise MotionFileError(
             path,
-            f"motion section is truncated: 'Frames:' says {n_frames} but only {len(body)} frame lines follow; if "
-            "the file was cut short, copy it again, else set 'Frames:' to the number of whole frame lines",
+            f"motion section is truncated: 'Frames:' says {n_frames} but only {whole} whole frame lines follow; if "
+            f"the file was cut short, copy it again, else set 'Frames:' to {whole}"
+            + (" and delete the cut-off line after them" if whole < len(body) else ""),
             first + len(body) - 1 if body else first - 1,
+        )
+    # the lines just after the frames, and the last: a count far too small costs no scan of all
+    extra = [*range(n_frames, min(len(body), n_frames + 100)), *range(max(n_frames + 100, len(body) - 1), len(body))]
+    junk = next((n for n in extra if not _is_frame(body[n], D)), None)
+    if junk is not None:  # not frames: counting them in would not read the file either
+        raise MotionFileError(
+            path,
+            f"after the {n_frames} frames 'Frames:' says, a line that is no frame of {D} values: delete it "
+            "(and any other such line)",
+            first + junk,
         )
     if len(body) > n_frames:
         raise MotionFileError(

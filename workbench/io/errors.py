@@ -42,9 +42,10 @@ class OutputFileError(OSError):
 
 def read_json_file(path: str | Path, kind: str) -> object:
     """The JSON document in ``path``; a :class:`MotionFileError` naming the file and ``kind``
-    (e.g. "mask", "mapping") where it cannot be read or is not JSON."""
+    (e.g. "mask", "mapping") where it cannot be read or is not JSON. A UTF-8 byte-order
+    mark, which some editors write, is read past (as the BVH reader does)."""
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
+        return json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except OSError as err:
         raise MotionFileError(path, f"cannot read the {kind} file ({err.strerror or err})") from None
     except ValueError as err:

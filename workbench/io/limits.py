@@ -22,8 +22,21 @@ MAX_JOINTS = 10_000
 #: the shortest frame time a motion file may give (seconds): 100,000 frames a second,
 #: far above any capture's rate; a shorter one is a damaged line, not a take
 MIN_FRAME_TIME = 1e-5
+#: the largest magnitude a motion file's value may have (degrees, or its length unit): a
+#: thousand kilometres in millimetres, a million turns; a larger one is a damaged number,
+#: and squared it would overflow every engine's arithmetic to infinity
+MAX_ABS_VALUE = 1e9
 #: bytes decoded and split into lines at a time by :class:`Lines`
 _CHUNK_BYTES = 1 << 20
+
+
+def name_fault(name: str) -> str | None:
+    """What is wrong with a joint's (a bone's) ``name`` as a file gives it, completing a
+    sentence that starts with the name; None for a name that may be written back. A control
+    character is refused: a NUL ends the name in C's strings, so other tools would read
+    another name."""
+    bad = next((c for c in name if ord(c) < 32 or ord(c) == 127), None)
+    return None if bad is None else f"holds the control character {ord(bad):#04x}: rename the joint"
 
 
 class Lines:

@@ -37,9 +37,19 @@ def take_mask(take: str | Path, skeleton: Skeleton, n_frames: int, mask: str | P
     else ``take``'s sidecar where there is one, checked against the take's ``skeleton``
     and its ``n_frames`` frames as in the file."""
     path = Path(mask) if mask else sidecar_path(take)
-    if not mask and not path.exists():
+    if mask:
+        return read_mask(path, skeleton, n_frames), path
+    if not path.exists():
         return None, None
-    return read_mask(path, skeleton, n_frames), path
+    try:
+        return read_mask(path, skeleton, n_frames), path
+    except MotionFileError as err:  # found, not named: say so, and how to be rid of it
+        raise MotionFileError(
+            path,
+            f"{err.reason}; it was found beside the take and read as its mask: rename or delete it if it is "
+            "another take's, or name the take's own mask with --mask",
+            err.line,
+        ) from None
 
 
 def observed_take(path: str | Path, motion: Motion, observed: np.ndarray | None = None) -> Observation:
