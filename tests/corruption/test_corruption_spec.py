@@ -219,6 +219,9 @@ def test_errors_that_depend_on_the_clip(walk):
     with pytest.raises(CorruptionApplyError, match="take of one frame.*use 2 or more"):
         parse_corruption("joints:3").apply(walk.slice(0, 1))
     parse_corruption("joints:0").apply(walk.slice(0, 1))  # nothing to take away
+    still = walk.slice(0, 10).with_channels(np.repeat(walk.channels[:1], 10, axis=0))
+    with pytest.raises(CorruptionApplyError, match="no non-root joint of this take moves"):
+        parse_corruption("joints:1").apply(still)
     for seed in (-1, 1.5, "0", True):
         with pytest.raises(CorruptionApplyError, match="seed"):
             parse_corruption("angular:0.5").apply(walk, seed=seed)

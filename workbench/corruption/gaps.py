@@ -119,6 +119,11 @@ class Joints(Model):
         eligible = self.eligible(work)
         if self.n > eligible.size and work.n_frames < 2:
             raise CorruptionApplyError(f"{self}: a take of one frame has no joint whose angles vary; use 2 or more")
+        if self.n and not eligible.size:
+            raise CorruptionApplyError(
+                f"{self}: no non-root joint of this take moves (every angle is constant), so none can go missing; "
+                "corrupt a take with motion"
+            )
         if self.n > eligible.size:
             raise CorruptionApplyError(
                 f"{self}: this skeleton has only {eligible.size} non-root joints whose angles vary; "
