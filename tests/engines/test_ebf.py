@@ -160,7 +160,8 @@ def test_the_one_window_network_is_the_network(encoder, recurrent):
         codes = net.encode(frames)
         windows = codes.unfold(0, L, 1).permute(0, 2, 1).contiguous()  # (10, L, E)
         one = net.one_window()
-        assert np.abs(np.stack([one.encode(f) for f in frames.numpy()]) - codes.numpy()).max() < 1e-6
+        # float32 sums in another order (numpy's BLAS, torch's): 1.2e-6 apart on an AVX2 EPYC
+        assert np.abs(np.stack([one.encode(f) for f in frames.numpy()]) - codes.numpy()).max() < 1e-5
         assert np.abs(np.stack([one(w) for w in windows.numpy()]) - net(windows).numpy()).max() < 1e-5
         if recurrent:
             net.run_core_in_bf16()
