@@ -166,6 +166,40 @@ def test_an_interrupted_batch_says_what_is_done_and_how_to_go_on(library, tmp_pa
     assert "interrupted: 1 takes written, 2 not done" in err and "--resume" in err
 
 
+def test_a_folder_clean_writing_nothing_leaves_no_folder_and_one_it_cannot_make_is_a_clear_error(tmp_path, capsys):
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "bad.bvh").write_text("HIERARCHY\nROOT Hips\n{\n")
+    out = tmp_path / "made" / "out"
+    assert main(["clean", str(takes), "-o", str(out), "--engine", "lerp", "--workers", "1"]) == 2
+    assert "1 of 1 takes failed (none was written)" in capsys.readouterr().err
+    assert not (tmp_path / "made").exists(), "the folders the command made are removed again"
+    kept = tmp_path / "kept"
+    (kept / "other.txt").parent.mkdir()
+    (kept / "other.txt").write_text("mine")
+    assert main(["clean", str(takes), "-o", str(kept), "--engine", "lerp", "--workers", "1"]) == 2
+    assert sorted(p.name for p in kept.iterdir()) == [".workbench-clean.json", "other.txt"]
+    capsys.readouterr()
+    assert main(["clean", str(takes), "-o", str(takes / "bad.bvh" / "sub"), "--engine", "lerp"]) == 2
+    err = capsys.readouterr().err
+    assert "bad.bvh/sub: cannot write it (Not a directory); nothing was written there" in err
+    assert "Traceback" not in err
+
+
+def test_a_record_whose_folder_holds_a_take_it_did_not_hear_of_is_kept_for_resume(tmp_path):
+    """A take written but not reported (an interrupt between the two): the folder, the
+    take and the record stay, so --resume goes on; an empty folder goes."""
+    out = tmp_path / "new" / "out"
+    record = batch.FolderRecord(out, {"engine": "lerp"}, resume=False)
+    (out / "sub").mkdir()
+    (out / "sub" / "take.bvh").write_text("a take\n")
+    record.discard_if_unused()
+    assert (out / batch.MANIFEST).exists() and (out / "sub" / "take.bvh").exists()
+    (out / "sub" / "take.bvh").unlink()
+    record.discard_if_unused()
+    assert not (tmp_path / "new").exists()
+
+
 @pytest.mark.slow
 def test_bench_on_one_worker_or_two_scores_the_same(embedded_root, tmp_path):
     import json
@@ -246,10 +280,10 @@ def test_a_take_at_1_or_1200_frames_a_second_is_cleaned_with_a_note_on_its_frame
     write_bvh(take, walk.replace(fps=1.0))  # as a Blender export that left its frame time at 1 s
     report = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh")
     (note,) = report.notes
-    assert "runs at 1 fps (Frame Time 1 s), far below" in note and "mend that line" in note and "4,800 frames" in note
+    assert "runs at 1 fps (Frame Time 1 s), far below" in note and "mend that line" in note and "4,681 frames" in note
     write_bvh(take, walk.replace(fps=1200.0))  # a digit too many: 0.00083333
     note, *more = batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes
-    assert "runs at 1200 fps" in note and "far above" in note and "to 4 frames" in note
+    assert "runs at 1200 fps" in note and "far above" in note and "to 5 frames" in note
     assert all("jump faster than a body can" in n for n in more)  # ten times too fast, the walk is
     write_bvh(take, walk)
     assert batch.clean_file(create("kalman"), take, tmp_path / "out.bvh").notes == ()

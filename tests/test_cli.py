@@ -46,6 +46,20 @@ def test_corrupt_then_clean(tmp_path, data_root, capsys):
     assert again.read_text() == noisy.read_text()
 
 
+def test_a_sidecar_of_another_take_says_it_was_found_and_how_to_be_rid_of_it(tmp_path, data_root, capsys):
+    src = data_root / "cmu" / "walk" / "02_01.bvh"
+    noisy = tmp_path / "noisy.bvh"
+    assert main(["corrupt", str(src), "-o", str(noisy), "--corrupt", "gaps:0.01", "--seed", "3"]) == 0
+    short = tmp_path / "short.bvh"
+    write_bvh(short, read_bvh(noisy).slice(0, 20))
+    (tmp_path / "short.bvh.mask.json").write_bytes((tmp_path / "noisy.bvh.mask.json").read_bytes())
+    capsys.readouterr()
+    assert main(["clean", str(short), "-o", str(tmp_path / "out.bvh"), "--engine", "lerp"]) == 2
+    err = capsys.readouterr().err
+    assert "the mask is for 343 frames, the take has 20; it was found beside the take and read as its mask" in err
+    assert "--mask" in err and not (tmp_path / "out.bvh").exists()
+
+
 def test_clean_treats_nan_as_missing(tmp_path, walk):
     from workbench.io.bvh import format_bvh
 
@@ -69,6 +83,7 @@ def test_clean_treats_nan_as_missing(tmp_path, walk):
         (["corrupt", "{good}", "-o", "{tmp}/o.bvh", "--corrupt", "wobble:1"], "wobble"),
         (["clean", "{good}", "-o", "{tmp}/o.amc", "--engine", "identity"], "the .bvh suffix"),
         (["clean", "{good}", "-o", "{bad}/o.bvh", "--engine", "identity"], "bad.bvh is a file, not a folder"),
+        (["corrupt", "{good}", "-o", "{tmp}", "--corrupt", "gaps:0.01"], "is a folder: name the .bvh file to write"),
         (["clean", "{good}", "-o", "{tmp}/o.bvh", "--engine", "cae:window_frames=0"], "window_frames must be"),
         (["data", "--dataset", "nosuch"], "no clips of split='all' dataset='nosuch'"),
         (["bench", "--engines", ",", "--corrupt", "angular:0.5"], "no engine named in ','"),
@@ -693,7 +708,13 @@ def test_a_take_s_unit_can_be_given_where_its_rest_pose_guesses_wrong(tmp_path, 
     capsys.readouterr()
     with pytest.raises(SystemExit):
         main(["skeleton", str(take), "--unit", "furlong"])
-    assert "want mm, cm, m, in, cmu or the unit's size in cm, got 'furlong'" in capsys.readouterr().err
+    assert "want mm, cm, m, in, cmu or the unit's size in cm (1e-4 to 1e4), got 'furlong'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["skeleton", str(take), "--unit", "1e308"])
+    assert "(1e-4 to 1e4), got '1e308'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["skeleton", str(take), "--unit", "1e-5"])
+    assert "(1e-4 to 1e4), got '1e-5'" in capsys.readouterr().err
     assert main(["corrupt", str(take), "-o", str(tmp_path / "n.bvh"), "--corrupt", "spatial:1", "--unit", "cm"]) == 0
     by_cm = read_bvh(tmp_path / "n.bvh").channels
     assert main(["corrupt", str(take), "-o", str(tmp_path / "n.bvh"), "--corrupt", "spatial:1"]) == 0

@@ -88,6 +88,27 @@ def test_a_read_only_folder_keeps_the_earlier_output(tmp_path, take, capsys):
         assert snapshot(disk) == before
 
 
+def test_a_read_only_output_is_refused_and_a_link_is_written_through(tmp_path, take, capsys):
+    """A file made read-only (mode 444) is kept, even for root; an output that is a link
+    writes the file it names and stays a link."""
+    earlier = tmp_path / "out.bvh"
+    earlier.write_text("an earlier output\n")
+    earlier.chmod(0o444)
+    for argv in (["clean", str(take), "--engine", "lerp"], ["corrupt", str(take), "--corrupt", "gaps:0.01"]):
+        assert main([*argv, "-o", str(earlier)]) == 2
+        err = capsys.readouterr().err
+        assert f"{earlier}: cannot write it (the file is read-only: make it writable or name another file)" in err
+        assert earlier.read_text() == "an earlier output\n" and "Traceback" not in err
+    target, link = tmp_path / "target.bvh", tmp_path / "link.bvh"
+    target.write_text("old\n")
+    link.symlink_to(target)
+    assert main(["clean", str(take), "-o", str(link), "--engine", "lerp"]) == 0
+    assert link.is_symlink() and read_bvh(target).n_frames == read_bvh(take).n_frames
+    target.chmod(0o444)  # found through the link before the clean, and named as given
+    assert main(["clean", str(take), "-o", str(link), "--engine", "lerp"]) == 2
+    assert f"{link}: cannot write it (the file is read-only" in capsys.readouterr().err
+
+
 def test_a_benchmark_whose_json_cannot_be_written_says_so_before_it_runs(tmp_path, monkeypatch, capsys):
     import workbench.evaluate
 

@@ -102,6 +102,14 @@ def test_inspect_prints_the_intervals_and_writes_json(embedded_root, capsys):
     assert main(["inspect", str(embedded_root / "missing.bvh")]) == 2
 
 
+def test_inspect_checks_a_mapping_file_against_the_take_as_clean_does(embedded_root, tmp_path, capsys):
+    take = str(embedded_root / "cmu" / "walk" / "35_31.bvh")
+    mapping = tmp_path / "map.json"
+    mapping.write_bytes(b"\xef\xbb\xbf" + json.dumps({"neck": "NoSuchJoint"}).encode())  # with a BOM: read past
+    assert main(["inspect", take, "--mapping", str(mapping)]) == 2
+    assert "mapping: neck = 'NoSuchJoint', but the take has no joint 'NoSuchJoint'" in capsys.readouterr().err
+
+
 def test_the_samples_a_robust_engine_rejects_are_the_spikes(embedded_walk):
     observation = parse_corruption("outliers:0.01").apply(embedded_walk, seed=1)
     truth = _pose_error_deg(embedded_walk, observation.motion) > 10.0

@@ -28,6 +28,7 @@ own.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import signal
@@ -90,6 +91,7 @@ def _frame_time_note(source: Path, motion) -> str | None:
     """A note for a take whose frame rate lies outside any capture's (its Frame Time line
     is likely wrong), else None."""
     from .engine.base import UNIVERSAL_FPS
+    from .engine.view import resampled_frames
 
     if LEAST_CAPTURE_FPS <= motion.fps <= MOST_CAPTURE_FPS:
         return None
@@ -97,7 +99,7 @@ def _frame_time_note(source: Path, motion) -> str | None:
     return (
         f"{source} runs at {motion.fps:g} fps (Frame Time {1 / motion.fps:g} s), {where} any capture's rate; if its "
         f"exporter wrote the wrong frame time, mend that line: an engine that works at {UNIVERSAL_FPS:g} fps "
-        f"resamples the take to {motion.n_frames * UNIVERSAL_FPS / motion.fps:,.0f} frames"
+        f"resamples the take to {resampled_frames(motion.n_frames, motion.fps, UNIVERSAL_FPS):,} frames"
     )
 
 
@@ -374,14 +376,19 @@ class FolderRecord:
     Opened with ``resume``, a folder cleaned with other settings is refused (ValueError
     naming both) and its lines are kept; otherwise the record starts afresh with the
     settings alone (atomically), so no earlier take counts as done. A record written
-    before the takes had lines (one JSON object of the settings) resumes nothing."""
+    before the takes had lines (one JSON object of the settings) resumes nothing. An
+    output folder that cannot be made, or a record that cannot be written, raises
+    :class:`workbench.io.OutputFileError` (the folders made for it removed again)."""
 
     def __init__(self, out_dir: Path, settings: dict, resume: bool) -> None:
         from .io.atomic import atomic_write_text
+        from .io.errors import OutputFileError
 
         self.out_dir, self.settings, self.resume = Path(out_dir), settings, resume
         self.path = self.out_dir / MANIFEST
         self.done: dict[str, dict] = {}
+        #: the folders this record made, innermost first (:meth:`discard_if_unused`)
+        self.created: list[Path] = []
         if resume and self.path.exists():
             before, self.done = self._read()
             if before != settings:
@@ -390,11 +397,21 @@ class FolderRecord:
                     "would mix the two; leave out --resume to clean every take again, or name another folder"
                 )
         else:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
+            if self.out_dir.is_symlink() and not self.out_dir.exists():
+                raise OutputFileError(self.out_dir, FileNotFoundError(errno.ENOENT, "a link to nothing"))
+            self.created = [d for d in (self.out_dir, *self.out_dir.parents) if not d.exists()]
+            try:
+                self.out_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as err:  # a file in the way, no permission
+                raise OutputFileError(self.out_dir, err) from None
         # written whole (atomically): a record of the old layout or a last line cut short
         # would otherwise take the lines appended after it
         lines = [{"settings": settings}, *self.done.values()]
-        atomic_write_text(self.path, "".join(json.dumps(line) + "\n" for line in lines))
+        try:
+            atomic_write_text(self.path, "".join(json.dumps(line) + "\n" for line in lines))
+        except OutputFileError:
+            self.discard_if_unused()
+            raise
 
     def _read(self) -> tuple[dict, dict[str, dict]]:
         unreadable = ValueError(
@@ -457,6 +474,23 @@ class FolderRecord:
             f.flush()
             os.fsync(f.fileno())
         self.done[entry["output"]] = entry
+
+    def discard_if_unused(self) -> None:
+        """Remove the record and the folders it made where they hold no other file (every
+        take failed, or the cluster could not be reached): a failed command leaves no output
+        folder behind. Where a file is there (a take whose report was cut off by an
+        interrupt), everything stays, the record too, so ``--resume`` goes on."""
+        if not self.created or self.done:
+            return
+        try:
+            if any(p != self.path and not p.is_dir() for p in self.out_dir.rglob("*")):
+                return
+            self.path.unlink(missing_ok=True)
+            inside = sorted((p for p in self.out_dir.rglob("*")), key=lambda p: len(p.parts), reverse=True)
+            for folder in [*inside, *self.created]:  # the deepest first: each is empty when its turn comes
+                folder.rmdir()
+        except OSError:  # a file that came meanwhile: what is left stays
+            pass
 
 
 def _settings_text(settings: dict) -> str:

@@ -237,6 +237,11 @@ def cmd_inspect(args) -> int:
     observed, mask = take_mask(args.take, recorded.skeleton, recorded.n_frames, args.mask)  # the file's frames
     observed = observed_take(args.take, motion, None if observed is None else observed[dropped:]).observed
     weights, points, overrides = [], [], _pins(args)
+    if overrides:  # checked against the take as every engine checks it, whether or not one runs
+        from .core.humanoid import map_humanoid
+        from .engine.view import body_skeleton
+
+        map_humanoid(body_skeleton(motion.skeleton), overrides)
     for spec in args.engine or []:
         result = with_humanoid_overrides(registry.create(spec), overrides).clean(Observation(motion, observed))
         points.append(result.motion.positions * motion.skeleton.unit_cm)
@@ -283,6 +288,8 @@ def _measure_inspection(args) -> int:
 
 def _check_bvh_output(output: Path) -> None:
     """Raise UserError unless ``output`` names a BVH file (what the commands write)."""
+    if output.is_dir():
+        raise UserError(f"-o {output} is a folder: name the .bvh file to write, e.g. -o {output / 'take.bvh'}")
     if output.suffix.lower() != ".bvh":
         raise UserError(f"-o {output}: the take is written as BVH; name the file with the .bvh suffix")
 
@@ -455,6 +462,10 @@ def cmd_clean(args) -> int:
                 f"note: {', '.join(ignored)}: for a folder of takes; {source} is one take, cleaned here",
                 file=sys.stderr,
             )
+        from .io.atomic import check_writable
+
+        if output.parent.is_dir():  # (no folder made before the clean)
+            check_writable(output)  # a read-only or unwritable output is found before the clean, not after it
         backup = _back_up(source) if args.in_place else None
         try:
             report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects, args.unit)
@@ -492,8 +503,9 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
     """``clean DIR -o OUT`` on Dask (:func:`workbench.batch.clean_library`): a line per
     take (a progress bar above them on a terminal), the failed takes and their reasons
     at the end; exit status 2 when some failed, 130 when interrupted. ``overrides``: what
-    the ``--mapping`` file pins (:func:`_pins`), recorded for ``--resume``."""
-    from .batch import FolderRecord, clean_library
+    the ``--mapping`` file pins (:func:`_pins`), recorded for ``--resume``. A folder this
+    command made is removed again where no take was written into it."""
+    from .batch import FolderRecord
 
     # the mapping by what it pins (``overrides``), not by its path: an edited file cleans again
     mapping = None if overrides is None else dict(sorted(overrides.items()))
@@ -506,6 +518,17 @@ def _clean_library(args, spec: str, jobs: list[tuple[Path, Path]], overrides: di
         record = FolderRecord(Path(args.output), settings, args.resume)
     except ValueError as err:
         raise UserError(str(err)) from None
+    try:
+        return _clean_into(args, spec, jobs, record)
+    finally:
+        record.discard_if_unused()
+
+
+def _clean_into(args, spec: str, jobs: list[tuple[Path, Path]], record) -> int:
+    """The takes of ``jobs`` cleaned into the folder of ``record`` (a
+    :class:`workbench.batch.FolderRecord`), reported as :func:`_clean_library` says."""
+    from .batch import clean_library
+
     _cluster_notes(args)
     bar = _progress_bar(len(jobs), sum(_size(p) for p, _ in jobs))
     done: list = []
@@ -1028,15 +1051,20 @@ def _corruption_text(text: str) -> str:
 
 def _unit(text: str) -> float:
     """An argparse type: a length unit's size in cm, by name
-    (:data:`workbench.core.skeleton.UNITS_CM`) or as a positive number."""
+    (:data:`workbench.core.skeleton.UNITS_CM`) or as a number from 1e-4 (a micrometre) to
+    1e4 (100 m): beyond those a body's size would be nothing or overflow."""
     from .core.skeleton import UNITS_CM
 
     if text.lower() in UNITS_CM:
         return UNITS_CM[text.lower()]
+    want = f"want {', '.join(UNITS_CM)} or the unit's size in cm (1e-4 to 1e4)"
     try:
-        return _positive_number(text)
+        value = _positive_number(text)
     except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"want {', '.join(UNITS_CM)} or the unit's size in cm, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"{want}, got {text!r}") from None
+    if not 1e-4 <= value <= 1e4:
+        raise argparse.ArgumentTypeError(f"{want}, got {text!r}")
+    return value
 
 
 def _positive_number(text: str) -> float:

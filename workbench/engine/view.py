@@ -188,13 +188,18 @@ def _unwrapped(motion: Motion) -> np.ndarray:
 MAX_RESAMPLED_FRAMES, MAX_RATE_RAISE = 4_000_000, 120.0
 
 
+def resampled_frames(n_from: int, fps_from: float, fps_to: float) -> int:
+    """How many frames ``n_from`` frames at ``fps_from`` become at ``fps_to`` (:func:`frame_times`)."""
+    return int(np.ceil((n_from - 1) * fps_to / fps_from - 1e-9)) + 1
+
+
 def frame_times(n_from: int, fps_from: float, fps_to: float) -> np.ndarray:
     """Times of the frames of a take resampled from ``fps_from`` to ``fps_to``, in frames
     of the original: every ``fps_from / fps_to`` frames from its first, and one at its
     last frame where that step does not land on it (so the end is kept). Raises
     EngineError for more than :data:`MAX_RESAMPLED_FRAMES`, or a rate raised more than
     :data:`MAX_RATE_RAISE` times."""
-    n = int(np.ceil((n_from - 1) * fps_to / fps_from - 1e-9)) + 1
+    n = resampled_frames(n_from, fps_from, fps_to)
     if n > MAX_RESAMPLED_FRAMES or (n > n_from and fps_to > MAX_RATE_RAISE * fps_from):
         raise EngineError(
             f"resampling the take's {n_from:,} frames from {fps_from:g} to {fps_to:g} fps would make {n:,} "

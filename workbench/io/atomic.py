@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -26,13 +27,16 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success it replaces ``path``, on any
     error it is removed and ``path`` is left as it was.
 
+    A ``path`` that is a symbolic link is written through to the file it names, as a
+    shell's ``>`` would (the link stays); a read-only file is refused, not replaced.
+
     Raises
     ------
     OutputFileError
         For any OSError while making the folder, writing the temporary file (in the
         ``with`` block: a full disk) or renaming it: the file named and nothing lost.
     """
-    path = Path(path)
+    given, path = path, _written(path)  # errors name the path as the user gave it
     tmp = None
     try:
         tmp = _temporary_beside(path)
@@ -44,10 +48,15 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     except OutputFileError:
         raise
     except OSError as err:
-        raise OutputFileError(path, err) from None
+        raise OutputFileError(given, err) from None
     finally:
         if tmp is not None and os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def _written(path: str | Path) -> Path:
+    """The file that writing ``path`` writes: the target of a symbolic link, else itself."""
+    return Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
 
 
 def _temporary_beside(path: Path) -> str:
@@ -57,6 +66,10 @@ def _temporary_beside(path: Path) -> str:
         raise NotADirectoryError(errno.ENOTDIR, f"{blocking} is a file, not a folder")
     if path.is_dir():
         raise IsADirectoryError(errno.EISDIR, f"{path} is a folder")
+    # by its mode, not os.access, which lets root write anything: replacing a file made
+    # read-only would lose its protection
+    if path.is_file() and not path.stat().st_mode & stat.S_IWUSR:
+        raise PermissionError(errno.EACCES, "the file is read-only: make it writable or name another file")
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
@@ -68,7 +81,7 @@ def check_writable(path: str | Path) -> None:
     (a temporary file made beside it, and removed): for a command that writes its output
     after minutes of work."""
     try:
-        os.unlink(_temporary_beside(Path(path)))
+        os.unlink(_temporary_beside(_written(path)))
     except OSError as err:
         raise OutputFileError(path, err) from None
 
