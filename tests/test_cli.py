@@ -213,6 +213,53 @@ def test_the_embedded_takes_bench_out_of_the_box_and_are_never_trained_on(embedd
 
 
 @pytest.mark.usefixtures("data_root")
+def test_bench_refuses_what_would_overwrite_a_take_or_score_nothing(tmp_path, data_root, capsys):
+    take = tmp_path / "take.bvh"
+    take.write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    raw = take.read_bytes()
+    base = [
+        "bench",
+        "--engines",
+        "lerp",
+        "--corrupt",
+        "gaps:0.01",
+        "--data",
+        str(data_root),
+        "--clips",
+        "cmu/walk/35_31",
+    ]
+    refusals = [
+        ([*base, "--json", str(take)], "the scores are written as JSON; name the file with the .json suffix"),
+        ([*base, "--long", "--json", str(tmp_path / "a.json")], "--long prints its table: leave out --json"),
+        (
+            [*base[:2], "mssa:weights=" + str(tmp_path / "none"), *base[3:]],
+            "no weights manifest here",
+        ),
+    ]
+    for argv, message in refusals:
+        assert main(argv) == 2
+        assert message in capsys.readouterr().err
+    assert take.read_bytes() == raw and not (tmp_path / "a.json").exists()
+    with pytest.raises(SystemExit):
+        main([*base, "--long", "--minutes", "0.05"])
+    assert "want 0.1 to 600 minutes, got '0.05'" in capsys.readouterr().err
+    from workbench import registry
+
+    bandai = [
+        "--data",
+        str(data_root),
+        "--clips",
+        "bandai/bow/dataset-1_bow_happy_001",
+        "--json",
+        str(tmp_path / "s.json"),
+    ]
+    cmu_weights = f"kalman-learned:weights={registry.create('kalman-learned').default_weights_dir() / 'cmu'}"
+    assert main(["bench", "--engines", cmu_weights, "--corrupt", "gaps:0.01", *bandai]) == 2
+    err = capsys.readouterr().err
+    assert "has no weights for this skeleton" in err and "no engine cleaned any clip" in err
+    assert not (tmp_path / "s.json").exists()
+
+
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert (
@@ -459,11 +506,17 @@ def test_train_refuses_before_training_what_would_lose_weights(tmp_path, data_ro
     data = ["--data", str(takes)]
     committed = registry.create("kalman-learned").default_weights_dir() / "cmu"
     before = {p.name: p.read_bytes() for p in committed.iterdir()}
+    ebf_committed = registry.create("ebf").default_weights_dir() / "cmu"
     refusals = [
         (["kalman", *data], "engine 'kalman' has nothing to train"),
         (["kalman-learned", "--epochs", "1", *data], "fitted in closed form, not in epochs: leave out --epochs"),
         (["kalman-learned", *data, "--out", str(committed)], "is among the committed weights"),
+        (["kalman-learned", *data, "--out", str(ebf_committed), "--overwrite"], "is among the committed weights"),
         (["kalman-learned", *data, "--promote"], "--promote replaces the committed weights of a data set"),
+        (["lerp>ebf", "--epochs", "1", *data], "lerp>ebf is a pipeline: train its stages one at a time"),
+        ([f"ebf:weights={ebf_committed}", "--epochs", "1", *data], "names weights to clean with"),
+        (["workbench.io:read_motion", *data], "'workbench.io:read_motion' is no engine class"),
+        (["kalman-learned", *data, "--share", "1e-9"], "--share 1e-09 keeps no clip of the training split"),
     ]
     for args, message in refusals:
         assert main(["train", *args]) == 2

@@ -199,18 +199,12 @@ def _pins(args) -> dict[str, str | None] | None:
 
 
 def _with_epochs(engine, epochs: int):
-    """``engine`` (each stage of a pipeline) with ``epochs`` wherever a stage trains in
-    epochs: ``--epochs`` wins over an ``epochs=`` in the spec (one copied from a manifest).
-    UserError where no stage does (fitted in closed form)."""
-    from .engine import Pipeline
-
-    stages = getattr(engine, "stages", [engine])
-    if not any(hasattr(s.params, "epochs") for s in stages):
+    """``engine`` (one engine, not a pipeline) with ``epochs``: ``--epochs`` wins over an
+    ``epochs=`` in the spec (one copied from a manifest). UserError where it is fitted in
+    closed form."""
+    if not hasattr(engine.params, "epochs"):
         raise UserError(f"{engine.info.name} is fitted in closed form, not in epochs: leave out --epochs")
-    stages = [
-        type(s)(dataclasses.replace(s.params, epochs=epochs)) if hasattr(s.params, "epochs") else s for s in stages
-    ]
-    return Pipeline(stages) if hasattr(engine, "stages") else stages[0]
+    return type(engine)(dataclasses.replace(engine.params, epochs=epochs))
 
 
 def cmd_inspect(args) -> int:
@@ -464,8 +458,7 @@ def cmd_clean(args) -> int:
             )
         from .io.atomic import check_writable
 
-        if output.parent.is_dir():  # (no folder made before the clean)
-            check_writable(output)  # a read-only or unwritable output is found before the clean, not after it
+        check_writable(output)  # a read-only or unwritable output is found before the clean, not after it
         backup = _back_up(source) if args.in_place else None
         try:
             report = clean_file(engine, source, output, args.mask, args.keep_reference, args.fill_suspects, args.unit)
@@ -706,10 +699,14 @@ def cmd_bench(args) -> int:
     if len(set(specs)) < len(specs):  # a table has a row per engine: each once
         twice = sorted({s for s in specs if specs.count(s) > 1})
         raise UserError(f"{', '.join(twice)} named twice: name each engine once")
+    if args.long and args.json:
+        raise UserError("--json is for the clips' benchmark; --long prints its table: leave out --json")
     if args.json:  # before the benchmark's minutes, not after
         from .io.atomic import check_writable
 
         check_writable(args.json)
+        if Path(args.json).suffix.lower() != ".json":  # never a take or a manifest overwritten by a typo
+            raise UserError(f"--json {args.json}: the scores are written as JSON; name the file with the .json suffix")
     if args.long:
         return _bench_long(args, specs)
     chosen = _bench_clips(args)
@@ -739,6 +736,9 @@ def cmd_bench(args) -> int:
         per_joint=bool(args.per_joint),
         fill_suspects=args.fill_suspects,
     )
+    if not result.rows:  # no table to print, nor scores to write
+        _bench_notes(result)
+        raise UserError("no engine cleaned any clip (the notes above say why): nothing to score")
     datasets = result.datasets()
     if len(datasets) > 1:  # a table per dataset: their frame rates and skeletons differ
         for name, ids in datasets.items():
@@ -780,7 +780,11 @@ def _bench_long(args, specs: list[str]) -> int:
         f"{len(specs)} engines, each by a workbench clean command of its own",
         file=sys.stderr,
     )
-    print(run_long_benchmark(motion, specs, args.corrupt, args.seed0).markdown())
+    result = run_long_benchmark(motion, specs, args.corrupt, args.seed0)
+    print(result.markdown())
+    if failed := [row["engine"] for row in result.rows if "error" in row]:
+        print(f"workbench bench: {', '.join(failed)} did not clean the long take (the table says why)", file=sys.stderr)
+        return 2
     return 0
 
 
@@ -815,15 +819,19 @@ def _weights_out(named: str | None, engine, overwrite: bool = False) -> Path:
     what = f"--out {out}" if named else f"the weights' folder {out} (--out names another)"
     if (blocking := file_in_the_way(out)) is not None:
         raise UserError(f"{what}: {blocking} is a file; the weights go into a folder")
-    if out.resolve().is_relative_to(committed := engine.default_weights_dir().parent):
+    # the committed weights of every engine package beside this one's (engines/*/weights), not only its own
+    committed, target = engine.default_weights_dir().parent, out.resolve()
+    packages = committed.parents[1]
+    if target.is_relative_to(packages) and target.relative_to(packages).parts[1:2] == ("weights",):
+        committed = packages / target.relative_to(packages).parts[0] / "weights"
+    if target.is_relative_to(committed):
         raise UserError(
             f"{what} is among the committed weights ({committed}): train into another folder (--promote then "
             "replaces the committed weights of its data set)"
         )
     if has_weights(out) and not overwrite:
         raise UserError(f"{what} holds weights already: name another folder, or pass --overwrite to replace them")
-    nearest = next(f for f in (out, *out.resolve().parents) if f.exists())
-    check_writable(nearest / WEIGHTS_FILE)  # (a temporary file there, removed: no folder made before the training)
+    check_writable(out / WEIGHTS_FILE)  # (no folder made before the training)
     return out
 
 
@@ -835,16 +843,21 @@ def cmd_train(args) -> int:
     from .training import train_engine
 
     engine = registry.create(args.engine, pretrained=False)
+    if hasattr(engine, "stages"):  # weights are saved per engine, not per pipeline
+        raise UserError(
+            f"{args.engine} is a pipeline: train its stages one at a time (`workbench train STAGE`), then clean "
+            "with the pipeline"
+        )
     if not engine.info.trainable:
         raise UserError(f"engine {engine.info.name!r} has nothing to train")
-    if args.epochs is not None:
-        engine = _with_epochs(engine, args.epochs)
-    engine = with_humanoid_overrides(engine, _pins(args))
     if engine.weights_folder is not None:
         raise UserError(
             f"{WEIGHTS_OPTION}= names weights to clean with; to train, leave it out "
             "(--out says where the new weights go)"
         )
+    if args.epochs is not None:
+        engine = _with_epochs(engine, args.epochs)
+    engine = with_humanoid_overrides(engine, _pins(args))
     root = _data_root(args, training=True)
     clips = _in_unit(catalogue(root), args)
     dataset = args.dataset
@@ -863,6 +876,8 @@ def cmd_train(args) -> int:
         if not 0 < args.share <= 100:
             raise UserError(f"--share is a percentage in (0, 100], not {args.share:g}")
         train = share(train, args.share)
+        if not train:
+            raise UserError(f"--share {args.share:g} keeps no clip of the training split: name a larger share")
     first = train[0].load()
     engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
     loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
@@ -888,8 +903,9 @@ def cmd_train(args) -> int:
         run = train_engine(
             engine, [(c.id, m) for c, m in used], out, test=test, datasets={c.id: c.dataset for c, _ in used}
         )
-    except KeyboardInterrupt:
-        raise UserError("training interrupted; nothing was saved") from None
+    except KeyboardInterrupt:  # status 130, as every command interrupted
+        print("workbench train: interrupted; nothing was saved", file=sys.stderr)
+        return 130
     if run.test_scores:
         scores = {k: v for k, v in run.test_scores.items() if isinstance(v, float)}
         print(
@@ -1064,6 +1080,15 @@ def _unit(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{want}, got {text!r}") from None
     if not 1e-4 <= value <= 1e4:
         raise argparse.ArgumentTypeError(f"{want}, got {text!r}")
+    return value
+
+
+def _long_minutes(text: str) -> float:
+    """An argparse type: the long take's length in minutes, 0.1 (6 s) to 600 (10 hours):
+    shorter holds too few frames to time, longer more memory than a machine has."""
+    value = _positive_number(text)
+    if not 0.1 <= value <= 600:
+        raise argparse.ArgumentTypeError(f"want 0.1 to 600 minutes, got {text!r}")
     return value
 
 
@@ -1249,7 +1274,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="instead of the clips: a studio-length take (cmu/walk/03_04 forwards and backwards), BVH read and "
         "write speeds, and a workbench clean command per engine on it (time, frames/s, peak memory)",
     )
-    sp.add_argument("--minutes", type=_positive_number, default=10.0, help="the long take's length (default 10)")
+    sp.add_argument(
+        "--minutes", type=_long_minutes, default=10.0, help="the long take's length, 0.1 to 600 (default 10)"
+    )
     sp.set_defaults(func=cmd_bench)
 
     sp = sub.add_parser("train", help="train an engine on the training split")

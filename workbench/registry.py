@@ -55,9 +55,12 @@ def get(name: str) -> type:
 def _import_class(path: str) -> type:
     module, _, cls = path.partition(":")
     try:
-        return getattr(importlib.import_module(module), cls)
+        found = getattr(importlib.import_module(module), cls)
     except (ImportError, AttributeError) as err:
         raise EngineError(f"cannot import engine class {path!r}: {err}") from None
+    if not (isinstance(found, type) and issubclass(found, Engine) and found is not Pipeline and hasattr(found, "info")):
+        raise EngineError(f"{path!r} is no engine class: name a subclass of workbench.engine.Engine with its info")
+    return found
 
 
 def parse_options(text: str) -> dict[str, str]:
@@ -77,6 +80,8 @@ def parse_options(text: str) -> dict[str, str]:
 def create(spec: str, *, pretrained: bool = True) -> Engine:
     """Build an engine (or pipeline) from a spec string; trainable engines load their
     committed weights when ``pretrained`` and they have some."""
+    if not isinstance(spec, str):
+        raise TypeError(f"an engine spec is a string such as 'ebf' or 'lerp>ebf', not a {type(spec).__name__}")
     spec = spec.strip()
     if not spec:
         raise EngineError("empty engine spec")

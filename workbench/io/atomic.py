@@ -59,9 +59,10 @@ def _written(path: str | Path) -> Path:
     return Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
 
 
-def _temporary_beside(path: Path) -> str:
-    """An empty temporary file made beside ``path`` (its folders made first); OSError
-    where that cannot be."""
+def _temporary_beside(path: Path, make_folders: bool = True) -> str:
+    """An empty temporary file made beside ``path`` (its folders made first), or, without
+    ``make_folders``, in the nearest folder above it that exists; OSError where that
+    cannot be."""
     if (blocking := file_in_the_way(path.parent)) is not None:  # say so, not "File exists"
         raise NotADirectoryError(errno.ENOTDIR, f"{blocking} is a file, not a folder")
     if path.is_dir():
@@ -70,18 +71,23 @@ def _temporary_beside(path: Path) -> str:
     # read-only would lose its protection
     if path.is_file() and not path.stat().st_mode & stat.S_IWUSR:
         raise PermissionError(errno.EACCES, "the file is read-only: make it writable or name another file")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    if make_folders:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        folder = path.parent
+    else:
+        folder = next(f for f in (path.parent, *path.parent.absolute().parents) if f.exists())
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
     os.close(fd)
     return tmp
 
 
 def check_writable(path: str | Path) -> None:
     """Raise :class:`OutputFileError` unless :func:`atomic_path` could write ``path`` now
-    (a temporary file made beside it, and removed): for a command that writes its output
-    after minutes of work."""
+    (a temporary file made beside it, or in the nearest folder above it that exists, and
+    removed; no folder is made): for a command that writes its output after minutes of
+    work, and may fail before."""
     try:
-        os.unlink(_temporary_beside(_written(path)))
+        os.unlink(_temporary_beside(_written(path), make_folders=False))
     except OSError as err:
         raise OutputFileError(path, err) from None
 
