@@ -806,6 +806,24 @@ def test_bench_and_train_read_a_folder_of_takes_in_the_unit_given(tmp_path, walk
     assert units == [2.54]
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["train", "kalman-learned", "--out", ""],
+        ["bench", "--engines", "lerp", "--corrupt", "gaps:0.01", "--clips", " "],
+        ["bench", "--engines", "lerp", "--corrupt", "gaps:0.01", "--json", ""],
+        ["clean", "take.bvh", "-o", "", "--engine", "lerp"],
+        ["data", "--data", ""],
+    ],
+)
+def test_an_empty_option_value_is_refused_not_read_as_its_default(argv, capsys):
+    """An unset shell variable ("--out $OUT") would otherwise write into the current
+    folder, or filter nothing."""
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2 and "empty: give a value, or leave the option out" in capsys.readouterr().err
+
+
 def test_an_empty_corruption_or_a_mapping_that_does_not_fit_the_take_stops_the_command(tmp_path, data_root, capsys):
     src = data_root / "cmu" / "walk" / "02_01.bvh"
     with pytest.raises(SystemExit) as stop:  # an empty shell variable: the clean take scored, every error 0

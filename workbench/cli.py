@@ -1083,6 +1083,14 @@ def _unit(text: str) -> float:
     return value
 
 
+def _given(text: str) -> str:
+    """An argparse type: a value that is not empty (an unset shell variable would otherwise
+    stand for the option's default, or the current folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty: give a value, or leave the option out for its default")
+    return text
+
+
 def _long_minutes(text: str) -> float:
     """An argparse type: the long take's length in minutes, 0.1 (6 s) to 600 (10 hours):
     shorter holds too few frames to time, longer more memory than a machine has."""
@@ -1112,12 +1120,15 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
 
     def data_opt(sp, dataset_help: str = "only the clips of this dataset (e.g. cmu, bandai)"):
-        sp.add_argument("--data", metavar="DIR", help="data root (default: $WORKBENCH_DATA, datasets/, ../shared/data)")
-        sp.add_argument("--dataset", metavar="NAME", help=dataset_help)
+        sp.add_argument(
+            "--data", type=_given, metavar="DIR", help="data root (default: $WORKBENCH_DATA, datasets/, ../shared/data)"
+        )
+        sp.add_argument("--dataset", type=_given, metavar="NAME", help=dataset_help)
 
     def mapping_opt(sp):
         sp.add_argument(
             "--mapping",
+            type=_given,
             metavar="FILE",
             help='JSON pinning canonical joints where the rules guess wrong, e.g. {"neck": "Neck1"} '
             "(`workbench skeleton TAKE --mapping FILE` shows what it maps)",
@@ -1142,7 +1153,10 @@ def build_parser() -> argparse.ArgumentParser:
         )
         data_opt(sp)
         sp.add_argument(
-            "--clips", metavar="GLOB", help="only clips whose id or a part of it matches, e.g. 'cmu/walk/*' or 'walk'"
+            "--clips",
+            type=_given,
+            metavar="GLOB",
+            help="only clips whose id or a part of it matches, e.g. 'cmu/walk/*' or 'walk'",
         )
         sp.add_argument("--seeds", type=_whole_number(1), default=1, help="number of seeds (default 1)")
         sp.add_argument("--seed0", type=_whole_number(0), default=0, help="first seed (default 0)")
@@ -1166,7 +1180,9 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
     mapping_opt(sp)
     unit_opt(sp)
-    sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: TAKE.mask.json if present)")
+    sp.add_argument(
+        "--mask", type=_given, metavar="FILE", help="observed-mask sidecar (default: TAKE.mask.json if present)"
+    )
     sp.add_argument(
         "--engine",
         action="append",
@@ -1184,7 +1200,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
     sp.add_argument("input")
-    sp.add_argument("-o", "--output", required=True)
+    sp.add_argument("-o", "--output", type=_given, required=True)
     sp.add_argument(
         "--corrupt", required=True, type=_corruption_text, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01"
     )
@@ -1197,14 +1213,16 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument(
         "input", help="a BVH/AMC take, or a folder of them (cleaned into the folder -o names, with the same layout)"
     )
-    sp.add_argument("-o", "--output", help="the cleaned take (or folder); never the input itself")
+    sp.add_argument("-o", "--output", type=_given, help="the cleaned take (or folder); never the input itself")
     sp.add_argument(
         "--in-place",
         action="store_true",
         help=f"write the cleaned take over its input (one BVH take), keeping the raw one as INPUT{BACKUP_SUFFIX}",
     )
     sp.add_argument("--engine", required=True, metavar="SPEC", help="e.g. gaussian:sigma_ms=58 or lerp>gaussian")
-    sp.add_argument("--mask", metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)")
+    sp.add_argument(
+        "--mask", type=_given, metavar="FILE", help="observed-mask sidecar (default: INPUT.mask.json if present)"
+    )
     sp.add_argument(
         "--workers",
         type=_whole_number(1),
@@ -1258,7 +1276,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="as clean --fill-suspects: the engines see what `workbench inspect` flags as bad data missing "
         "(gap_mpjpe_cm then covers it too)",
     )
-    sp.add_argument("--json", metavar="PATH")
+    sp.add_argument("--json", type=_given, metavar="PATH")
     sp.add_argument("-v", "--verbose", action="store_true")
     sp.add_argument(
         "--workers",
@@ -1294,7 +1312,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="train on this percentage of the training clips (for learning curves; a fixed, nested choice)",
     )
     sp.add_argument(
-        "--out", metavar="DIR", help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias, or -2, -3, ...)"
+        "--out",
+        type=_given,
+        metavar="DIR",
+        help="where to save (default runs/<weights folder>, e.g. runs/ebf-bias, or -2, -3, ...)",
     )
     sp.add_argument("--overwrite", action="store_true", help="replace the weights --out holds already")
     mapping_opt(sp)
@@ -1350,10 +1371,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("report", help="the app's views and plots as one figure (PNG or PDF), headless")
     take_opts(sp)
-    sp.add_argument("-o", "--output", metavar="FILE.png|FILE.pdf")
+    sp.add_argument("-o", "--output", type=_given, metavar="FILE.png|FILE.pdf")
     sp.add_argument("--frame", type=int, help="frame shown in 3D (default: the middle)")
     sp.add_argument(
         "--video",
+        type=_given,
         metavar="FILE.mp4",
         help="also (or instead) the side-by-side playback with the error plot's cursor, in real time",
     )
@@ -1364,7 +1386,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     sp = sub.add_parser("screenshots", help="regenerate the app's screenshots")
     sp.add_argument(
-        "--out", default="screenshots", metavar="DIR", help="where to write them (default screenshots/, the README's)"
+        "--out",
+        type=_given,
+        default="screenshots",
+        metavar="DIR",
+        help="where to write them (default screenshots/, the README's)",
     )
     sp.add_argument("--engine", action="append", metavar="SPEC", help="engine spec, repeatable (default as for gui)")
     sp.set_defaults(func=cmd_screenshots)
