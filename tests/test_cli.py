@@ -212,7 +212,6 @@ def test_the_embedded_takes_bench_out_of_the_box_and_are_never_trained_on(embedd
     assert not (tmp_path / "w").exists()
 
 
-@pytest.mark.usefixtures("data_root")
 def test_bench_refuses_what_would_overwrite_a_take_or_score_nothing(tmp_path, data_root, capsys):
     take = tmp_path / "take.bvh"
     take.write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
@@ -260,6 +259,48 @@ def test_bench_refuses_what_would_overwrite_a_take_or_score_nothing(tmp_path, da
     assert not (tmp_path / "s.json").exists()
 
 
+def test_a_long_bench_whose_engine_failed_and_an_interrupted_train_say_so_in_their_status(
+    tmp_path, data_root, monkeypatch, capsys
+):
+    import workbench.evaluate
+    import workbench.training
+    from workbench.evaluate import LongResult
+
+    def failed(motion, specs, *args):
+        io = {"megabytes": 1.0, "read_frames_per_s": 1.0, "write_frames_per_s": 1.0}
+        return LongResult(motion.n_frames, motion.fps, io, [{"engine": specs[0], "error": "it broke"}])
+
+    monkeypatch.setattr(workbench.evaluate, "run_long_benchmark", failed)
+    argv = ["bench", "--long", "--minutes", "0.1", "--engines", "lerp", "--corrupt", "gaps:0.01"]
+    assert main([*argv, "--data", str(data_root)]) == 2
+    captured = capsys.readouterr()
+    assert "failed: it broke" in captured.out and "lerp did not clean the long take" in captured.err
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(workbench.training, "train_engine", interrupted)
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "a.bvh").write_bytes((data_root / "cmu" / "walk" / "02_01.bvh").read_bytes())
+    assert main(["train", "kalman-learned", "--data", str(takes), "--out", str(tmp_path / "w")]) == 130
+    assert "interrupted; nothing was saved" in capsys.readouterr().err and not (tmp_path / "w").exists()
+
+
+def test_train_out_refuses_a_package_s_weights_folder_only(tmp_path):
+    from workbench import registry
+    from workbench.cli import UserError, _weights_out
+
+    engine = registry.create("kalman-learned", pretrained=False)
+    package = tmp_path / "plugin"
+    (package / "weights").mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    with pytest.raises(UserError, match=f"is among the committed weights \\({package / 'weights'}\\)"):
+        _weights_out(str(package / "weights" / "v2" / "cmu"), engine)
+    assert _weights_out(str(tmp_path / "runs" / "weights" / "v2"), engine) == tmp_path / "runs" / "weights" / "v2"
+
+
+@pytest.mark.usefixtures("data_root")
 def test_bench_prints_a_table_and_writes_json(tmp_path, capsys):
     js = tmp_path / "b.json"
     assert (

@@ -109,6 +109,15 @@ def test_a_read_only_output_is_refused_and_a_link_is_written_through(tmp_path, t
     assert f"{link}: cannot write it (the file is read-only" in capsys.readouterr().err
 
 
+def test_checking_an_output_makes_no_folder(tmp_path):
+    from workbench.io.atomic import check_writable
+
+    check_writable(tmp_path / "new" / "deeper" / "out.bvh")
+    (tmp_path / "link.bvh").symlink_to(tmp_path / "gone" / "out.bvh")
+    check_writable(tmp_path / "link.bvh")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.bvh"]
+
+
 def test_a_benchmark_whose_json_cannot_be_written_says_so_before_it_runs(tmp_path, monkeypatch, capsys):
     import workbench.evaluate
 

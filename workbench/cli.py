@@ -705,7 +705,7 @@ def cmd_bench(args) -> int:
         from .io.atomic import check_writable
 
         check_writable(args.json)
-        if Path(args.json).suffix.lower() != ".json":  # never a take or a manifest overwritten by a typo
+        if Path(args.json).suffix.lower() != ".json":  # a take or a data set's MANIFEST.csv is never overwritten
             raise UserError(f"--json {args.json}: the scores are written as JSON; name the file with the .json suffix")
     if args.long:
         return _bench_long(args, specs)
@@ -800,9 +800,9 @@ def _weights_out(named: str | None, engine, overwrite: bool = False) -> Path:
     """The folder ``train`` saves ``engine``'s weights into: ``--out`` (``named``), checked
     before the training, or ``runs/VARIANT``, numbered ``runs/VARIANT-2`` and on where that
     holds weights already. UserError for a folder that cannot take them: one below a file,
-    an unwritable one, one among the engine's committed weights (they change only by
-    ``--promote``), or a named one that holds weights, unless ``overwrite`` (``--overwrite``:
-    a training's minutes are not lost by a typo)."""
+    an unwritable one, one among the engine's committed weights or any engine package's
+    (they change only by ``--promote``), or a named one that holds weights, unless
+    ``overwrite`` (``--overwrite``: a training's minutes are not lost by a typo)."""
     from .engine.weights import MANIFEST_FILE, WEIGHTS_FILE
     from .io.atomic import check_writable, file_in_the_way
 
@@ -819,11 +819,11 @@ def _weights_out(named: str | None, engine, overwrite: bool = False) -> Path:
     what = f"--out {out}" if named else f"the weights' folder {out} (--out names another)"
     if (blocking := file_in_the_way(out)) is not None:
         raise UserError(f"{what}: {blocking} is a file; the weights go into a folder")
-    # the committed weights of every engine package beside this one's (engines/*/weights), not only its own
+    # the committed weights of this engine, or of any engine package: a weights/ folder beside an __init__.py
     committed, target = engine.default_weights_dir().parent, out.resolve()
-    packages = committed.parents[1]
-    if target.is_relative_to(packages) and target.relative_to(packages).parts[1:2] == ("weights",):
-        committed = packages / target.relative_to(packages).parts[0] / "weights"
+    committed = next(
+        (f for f in (target, *target.parents) if f.name == "weights" and (f.parent / "__init__.py").exists()), committed
+    )
     if target.is_relative_to(committed):
         raise UserError(
             f"{what} is among the committed weights ({committed}): train into another folder (--promote then "
@@ -1170,13 +1170,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_engines)
 
     sp = sub.add_parser("skeleton", help="a take's skeleton and the canonical humanoid joints found on it")
-    sp.add_argument("take", help="a BVH/AMC take")
+    sp.add_argument("take", type=_given, help="a BVH/AMC take")
     mapping_opt(sp)
     unit_opt(sp)
     sp.set_defaults(func=cmd_skeleton)
 
     sp = sub.add_parser("inspect", help="which frames of a take (no ground truth needed) look broken, and why")
-    sp.add_argument("take", nargs="?", help="a BVH/AMC take")
+    sp.add_argument("take", type=_given, nargs="?", help="a BVH/AMC take")
     sp.add_argument("--json", action="store_true", help="the intervals as JSON on stdout")
     mapping_opt(sp)
     unit_opt(sp)
@@ -1199,7 +1199,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.set_defaults(func=cmd_inspect)
 
     sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
-    sp.add_argument("input")
+    sp.add_argument("input", type=_given)
     sp.add_argument("-o", "--output", type=_given, required=True)
     sp.add_argument(
         "--corrupt", required=True, type=_corruption_text, metavar="SPEC", help="e.g. angular:0.5+gaps:0.01"
@@ -1276,7 +1276,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="as clean --fill-suspects: the engines see what `workbench inspect` flags as bad data missing "
         "(gap_mpjpe_cm then covers it too)",
     )
-    sp.add_argument("--json", type=_given, metavar="PATH")
+    sp.add_argument(
+        "--json", type=_given, metavar="FILE.json", help="also the scores, per clip and seed, as JSON (not with --long)"
+    )
     sp.add_argument("-v", "--verbose", action="store_true")
     sp.add_argument(
         "--workers",
@@ -1333,7 +1335,11 @@ def build_parser() -> argparse.ArgumentParser:
         """The take's arguments; ``remembered``: the app's, whose defaults are the last session's."""
         last = "with no argument at all the last session's, else " if remembered else ""
         sp.add_argument(
-            "clip", nargs="?", default=DEFAULT_CLIP, help=f"clip id or BVH/AMC file (default {last}{DEFAULT_CLIP})"
+            "clip",
+            type=_given,
+            nargs="?",
+            default=DEFAULT_CLIP,
+            help=f"clip id or BVH/AMC file (default {last}{DEFAULT_CLIP})",
         )
         sp.add_argument(
             "--corrupt",
