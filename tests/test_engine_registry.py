@@ -123,6 +123,18 @@ def test_weights_bring_their_architecture_unless_the_spec_asks_for_another():
     assert trained == registry.create("cae").spec and "epochs=3" not in trained
 
 
+def test_fit_takes_a_list_of_motions_and_says_so_otherwise(walk):
+    engine = registry.create("kalman-learned", pretrained=False)
+    for bad, kind in (
+        ((m for m in [walk]), "a list of Motion, not a generator"),
+        ("takes/", "a list of Motion, not a str"),
+    ):
+        with pytest.raises(TypeError, match=kind):
+            engine.fit(bad)
+    with pytest.raises(TypeError, match="trains on Motion objects .workbench.io.read_motion., not on 'Observation'"):
+        engine.fit([walk, Observation(walk)])
+
+
 def test_import_path_specs():
     e = registry.create("engines.identity:Identity")
     assert e.info.name == "identity"

@@ -104,6 +104,8 @@ def test_a_read_only_output_is_refused_and_a_link_is_written_through(tmp_path, t
     link.symlink_to(target)
     assert main(["clean", str(take), "-o", str(link), "--engine", "lerp"]) == 0
     assert link.is_symlink() and read_bvh(target).n_frames == read_bvh(take).n_frames
+    assert main(["corrupt", str(take), "-o", str(link), "--corrupt", "gaps:0.01"]) == 0
+    assert (tmp_path / "target.bvh.mask.json").exists() and not (tmp_path / "link.bvh.mask.json").exists()
     target.chmod(0o444)  # found through the link before the clean, and named as given
     assert main(["clean", str(take), "-o", str(link), "--engine", "lerp"]) == 2
     assert f"{link}: cannot write it (the file is read-only" in capsys.readouterr().err

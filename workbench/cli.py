@@ -331,7 +331,8 @@ def cmd_corrupt(args) -> int:
             f"{source} has missing values (NaN) in {int(missing.sum())} frame(s), first in frame {first} of the "
             "file: corrupt makes a test take from a complete, clean one; clean this one first (workbench clean)"
         )
-    mask_path = sidecar_path(out)
+    # beside the file written: a link's target, where a reader of it finds its mask
+    mask_path = sidecar_path(Path(os.path.realpath(out)) if out.is_symlink() else out)
     for path in (out, mask_path):
         _refuse_overwriting(path, source, sidecar_path(source), "name another file")
     _check_bvh_output(out)
@@ -692,13 +693,17 @@ def _bench_notes(result) -> None:
             print(f"  {clip}: " + "; ".join(map(str, found)), file=sys.stderr)
 
 
+def _each_once(specs: list[str]) -> list[str]:
+    """``specs``, or UserError naming those given twice (a row or a pane is one engine's)."""
+    if twice := sorted({s for s in specs if specs.count(s) > 1}):
+        raise UserError(f"{', '.join(twice)} named twice: name each engine once")
+    return specs
+
+
 def cmd_bench(args) -> int:
     from .evaluate import run_benchmark
 
-    specs = split_engine_specs(args.engines)
-    if len(set(specs)) < len(specs):  # a table has a row per engine: each once
-        twice = sorted({s for s in specs if specs.count(s) > 1})
-        raise UserError(f"{', '.join(twice)} named twice: name each engine once")
+    specs = _each_once(split_engine_specs(args.engines))  # a table has a row per engine
     if args.long and args.json:
         raise UserError("--json is for the clips' benchmark; --long prints its table: leave out --json")
     if args.json:  # before the benchmark's minutes, not after
@@ -988,7 +993,7 @@ def cmd_report(args) -> int:
     def refused(spec: str, message: str) -> None:
         print(f"note: {spec} left out: {message}", file=sys.stderr)
 
-    specs = split_engine_specs(args.engine) if args.engine else default_engines()
+    specs = _each_once(split_engine_specs(args.engine)) if args.engine else default_engines()  # a pane each
     take, runs = clean_take(
         args.clip,
         args.corrupt,

@@ -89,6 +89,8 @@ def test_a_failing_report_leaves_the_old_file_untouched(tmp_path, capsys):
     assert cli.main(["report", DEFAULT_CLIP, "-o", str(tmp_path / "report.jpg")]) == 2
     assert cli.main(["report", DEFAULT_CLIP, "--engine", "identity", "--frame", "-1", "-o", str(out)]) == 2
     assert "--frame -1: the take's frames are 0 to" in capsys.readouterr().err and out.read_bytes() == b"old"
+    assert cli.main(["report", DEFAULT_CLIP, "--engine", "lerp,lerp", "-o", str(out)]) == 2
+    assert "lerp named twice: name each engine once" in capsys.readouterr().err and out.read_bytes() == b"old"
 
 
 def test_screenshots_of_every_main_state(tmp_path, tiny_walk, clips):

@@ -305,6 +305,15 @@ def test_a_joint_name_with_a_control_character_is_refused(walk, tmp_path, char):
     _expect(tmp_path, text.replace(f"JOINT {name}", f"JOINT {name[:2]}{char}{name[2:]}", 1), "control character")
 
 
+def test_a_unit_that_is_no_size_is_refused(walk, tmp_path):
+    path = tmp_path / "walk.bvh"
+    write_bvh(path, walk.slice(0, 5))
+    for unit in (0, -1.0, float("nan"), float("inf"), "cm", True):
+        with pytest.raises(ValueError, match="unit_cm is the length unit's size in cm, a number above 0"):
+            read_bvh(path, unit_cm=unit)
+    assert read_bvh(path, unit_cm=np.float32(2.54)).skeleton.unit_cm == pytest.approx(2.54)
+
+
 def test_unknown_channel(walk, tmp_path):
     text = _small(walk).replace("Zrotation Yrotation Xrotation", "Zrotation Yrotation Wrotation", 1)
     _expect(tmp_path, text, "unknown channel name 'Wrotation'")

@@ -17,6 +17,7 @@ the file back as it was.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -243,6 +244,19 @@ class Skeleton:
     def rest_height(self) -> float:
         """Vertical extent of the rest pose (file units), end sites included; Y is up."""
         return float(self.rest_extents()[1])
+
+
+def given_unit_cm(unit_cm: object) -> float | None:
+    """``unit_cm`` as a reader takes it: None (guess the unit), or a finite number above 0
+    (the unit's size in cm); ValueError for anything else (0, a negative, NaN, a name)."""
+    if unit_cm is None:
+        return None
+    if isinstance(unit_cm, bool) or not isinstance(unit_cm, numbers.Real) or not 0 < unit_cm < float("inf"):
+        raise ValueError(
+            f"unit_cm is the length unit's size in cm, a number above 0 (UNITS_CM has the usual ones), or None "
+            f"to guess it, not {unit_cm!r}"
+        )
+    return float(unit_cm)
 
 
 def guess_unit_cm(skeleton: Skeleton) -> float:

@@ -585,8 +585,14 @@ class Engine:
         from .view import model_motion, resample
 
         name = self.info.name
+        if not isinstance(motions, Sequence) or isinstance(motions, (str, bytes)):
+            raise TypeError(f"engine {name!r} trains on a list of Motion, not a {type(motions).__name__}")
         if not motions:
             raise EngineError(f"engine {name!r}: no training motions")
+        if other := next((m for m in motions if not isinstance(m, Motion)), None):
+            raise TypeError(
+                f"engine {name!r} trains on Motion objects (workbench.io.read_motion), not on {type(other).__name__!r}"
+            )
         for i, m in enumerate(motions):
             if (trouble := _teaches_nothing(m)) is not None:
                 raise EngineError(

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 from ..core.motion import Motion
+from ..core.skeleton import given_unit_cm
 from .bvh import read_bvh, write_bvh
 from .errors import MotionFileError, OutputFileError
 
@@ -13,7 +14,7 @@ MOTION_SUFFIXES = (".bvh", ".amc")
 def read_motion(path: str | Path, unit_cm: float | None = None) -> Motion:
     """Read a BVH file, or a CMU AMC file (its ASF skeleton beside it); ``unit_cm``: the
     size of its length unit in cm, where the one guessed from its rest pose is wrong."""
-    path = Path(path)
+    path, unit_cm = Path(path), given_unit_cm(unit_cm)
     if path.suffix.lower() == ".asf":
         raise MotionFileError(
             path, "an ASF file is a skeleton, with no motion: pass the take's .amc file (its .asf is found beside it)"

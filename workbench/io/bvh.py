@@ -26,7 +26,7 @@ from typing import BinaryIO, Iterator
 import numpy as np
 
 from ..core.motion import Motion
-from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton
+from ..core.skeleton import POSITION_CHANNELS, ROTATION_CHANNELS, Skeleton, given_unit_cm
 from .atomic import atomic_path
 from .errors import MotionFileError
 from .limits import MAX_ABS_VALUE, MAX_JOINTS, MIN_FRAME_TIME, Lines, name_fault
@@ -401,12 +401,13 @@ def fps_from_frame_time(frame_time: float, decimals: int | None = None) -> float
 
 
 def read_bvh(path: str | Path, *, unit_cm: float | None = None) -> Motion:
-    """Read a BVH file into a Motion. ``unit_cm`` overrides the guessed unit size.
+    """Read a BVH file into a Motion. ``unit_cm`` overrides the guessed unit size
+    (:func:`workbench.core.skeleton.given_unit_cm`: ValueError for one that is no size).
 
     Raises :class:`MotionFileError` for anything that is not a well-formed BVH file.
     NaN values are kept (they mark missing data).
     """
-    path = Path(path)
+    path, unit_cm = Path(path), given_unit_cm(unit_cm)
     lines = Lines(path)
     tokens = _Tokens(lines, str(path))
     header = _parse_hierarchy(tokens).replace(text_encoding=lines.encoding)
