@@ -483,10 +483,11 @@ class FolderRecord:
         if not self.created or self.done:
             return
         try:
-            if any(p != self.path and not p.is_dir() for p in self.out_dir.rglob("*")):
+            inside = [p for p in self.out_dir.rglob("*") if p != self.path]
+            if not all(p.is_dir() for p in inside):
                 return
             self.path.unlink(missing_ok=True)
-            inside = sorted((p for p in self.out_dir.rglob("*")), key=lambda p: len(p.parts), reverse=True)
+            inside.sort(key=lambda p: len(p.parts), reverse=True)
             for folder in [*inside, *self.created]:  # the deepest first: each is empty when its turn comes
                 folder.rmdir()
         except OSError:  # a file that came meanwhile: what is left stays

@@ -316,7 +316,7 @@ def cmd_corrupt(args) -> int:
     from .corruption import parse_corruption
     from .data import without_reference_frame
     from .io import write_bvh
-    from .io.atomic import atomic_path
+    from .io.atomic import atomic_path, written_path
     from .io.mask import sidecar_path, write_mask
 
     recorded = _read(args.input, args.unit)
@@ -331,8 +331,7 @@ def cmd_corrupt(args) -> int:
             f"{source} has missing values (NaN) in {int(missing.sum())} frame(s), first in frame {first} of the "
             "file: corrupt makes a test take from a complete, clean one; clean this one first (workbench clean)"
         )
-    # beside the file written: a link's target, where a reader of it finds its mask
-    mask_path = sidecar_path(Path(os.path.realpath(out)) if out.is_symlink() else out)
+    mask_path = sidecar_path(written_path(out))  # beside the file written (a link's target), where its reader looks
     for path in (out, mask_path):
         _refuse_overwriting(path, source, sidecar_path(source), "name another file")
     _check_bvh_output(out)

@@ -679,9 +679,8 @@ def run_long_benchmark(
                 {
                     "engine": spec,
                     "clean_s": float(found.group(1)),
-                    "frames_per_s": float(
-                        found.group(2).replace(",", "")
-                    ),  # of the unrounded time (0.00 s: a short take)
+                    # clean's own, of the unrounded time (a short take prints 0.00 s)
+                    "frames_per_s": float(found.group(2).replace(",", "")),
                     "command_s": command_s,
                     "peak_gb": usage.ru_maxrss / 2**20,  # kB on Linux
                 }

@@ -910,8 +910,8 @@ class Engine:
                 f"({', '.join(unknown)}): they are from another version of it; retrain them"
             )
         fixed = {k: saved.get(k, getattr(default, k)) for k, role in roles.items() if role != INFERENCE}
-        declared = {f.name: f.type for f in dataclasses.fields(default)}
-        if wrong := [f"{k}={v!r}" for k, v in fixed.items() if not _of_type(v, declared[k])]:
+        hints = typing.get_type_hints(type(default))  # the field types, as from_options reads them
+        if wrong := [f"{k}={v!r}" for k, v in fixed.items() if not _of_type(v, hints[k])]:
             raise EngineError(
                 f"{folder}: these weights record parameters of the wrong kind ({', '.join(wrong)}): they are damaged "
                 "or not this engine's; retrain them"
@@ -1124,17 +1124,15 @@ class Engine:
         return self._universal_twin
 
 
-def _of_type(value: object, declared: object) -> bool:
-    """Whether a parameter's recorded ``value`` fits its ``declared`` type (the field's
-    annotation, a string under postponed evaluation): a bool for bool, a whole number for
-    int, a number for float, text for str; any value for other types."""
-    name = getattr(declared, "__name__", declared)
-    if name == "bool":
+def _of_type(value: object, kind: typing.Any) -> bool:
+    """Whether a parameter's recorded ``value`` is of its field's type ``kind``, the types
+    :func:`_coerce` reads from text: a bool for bool, a whole number for int, a number for
+    float, text for str; any value for other types."""
+    if kind is bool:
         return isinstance(value, bool)
-    if name in ("int", "float"):
-        kinds = int if name == "int" else (int, float)
-        return isinstance(value, kinds) and not isinstance(value, bool)
-    return isinstance(value, str) if name == "str" else True
+    if kind in (int, float):
+        return isinstance(value, int if kind is int else (int, float)) and not isinstance(value, bool)
+    return isinstance(value, str) if kind is str else True
 
 
 def with_humanoid_overrides(engine: Engine, overrides: Mapping[str, str | None] | None) -> Engine:

@@ -36,7 +36,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         For any OSError while making the folder, writing the temporary file (in the
         ``with`` block: a full disk) or renaming it: the file named and nothing lost.
     """
-    given, path = path, _written(path)  # errors name the path as the user gave it
+    given, path = path, written_path(path)  # errors name the path as the user gave it
     tmp = None
     try:
         tmp = _temporary_beside(path)
@@ -54,7 +54,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             os.unlink(tmp)
 
 
-def _written(path: str | Path) -> Path:
+def written_path(path: str | Path) -> Path:
     """The file that writing ``path`` writes: the target of a symbolic link, else itself."""
     return Path(os.path.realpath(path)) if os.path.islink(path) else Path(path)
 
@@ -87,7 +87,7 @@ def check_writable(path: str | Path) -> None:
     removed; no folder is made): for a command that writes its output after minutes of
     work, and may fail before."""
     try:
-        os.unlink(_temporary_beside(_written(path), make_folders=False))
+        os.unlink(_temporary_beside(written_path(path), make_folders=False))
     except OSError as err:
         raise OutputFileError(path, err) from None
 
