@@ -9,8 +9,8 @@ pass doubles the order, has no phase lag, and is -6 dB there.
 
 Every channel of the channel matrix is filtered (root position included; angles
 unwrapped first); gaps are bridged by linear interpolation before filtering.
-A clip must be longer than the filter's padding (3 x (2 x sections + 1) frames, 16
-frames for order 4) and the cut-off below the Nyquist frequency fps / 2; otherwise
+A clip must be longer than the filter's padding (3 x (2 x sections + 1) frames, 15
+for order 4) and the cut-off below the Nyquist frequency fps / 2; otherwise
 ``clean`` raises EngineError.
 """
 

@@ -500,7 +500,6 @@ def measure_inspection(
     clips: Sequence[tuple[str, Motion]],
     seeds: Sequence[int] = (0,),
     engine_specs: Sequence[str] = (),
-    progress: Callable[[str], None] | None = None,
 ) -> dict[tuple[str, str], FlagCounts]:
     """How well :func:`workbench.data.inspection.inspect_motion` finds what is known to be
     broken: for each case of :data:`INSPECTION_CASES`, clip and seed, the counts of each
@@ -515,8 +514,6 @@ def measure_inspection(
     for clip_id, motion in clips:
         for case, corruption, reasons in INSPECTION_CASES:
             for seed in seeds if corruption != "none" else seeds[:1]:
-                if progress:
-                    progress(f"{case} on {clip_id} seed {seed}")
                 weights, points = [], []
                 if case == "spikes":
                     observation = parse_corruption(corruption).apply(motion, seed=seed)
@@ -620,16 +617,13 @@ class LongResult:
 IO_REPEATS = 3
 
 
-def run_long_benchmark(
-    motion: Motion, engine_specs: Sequence[str], corruption: str, seed: int = 0, folder=None
-) -> LongResult:
+def run_long_benchmark(motion: Motion, engine_specs: Sequence[str], corruption: str, seed: int = 0) -> LongResult:
     """Time reading and writing ``motion`` as BVH (the best of :data:`IO_REPEATS`),
     corrupt it (``workbench corrupt``'s files: the BVH and its mask), then clean it with
     each engine by a ``workbench clean`` process of its own: its clean alone (as it
     reports), the whole command, its peak resident memory; and push the corrupted take
     through each of those engines that streams, in this process
-    (:func:`stream_ms_per_frame`). ``folder``: where the files go (default: a temporary
-    folder)."""
+    (:func:`stream_ms_per_frame`). The files go into a temporary folder."""
     import os
     import re
     import subprocess
@@ -641,7 +635,7 @@ def run_long_benchmark(
     from .io.mask import sidecar_path, write_mask
 
     with tempfile.TemporaryDirectory() as tmp:
-        root = Path(folder or tmp)
+        root = Path(tmp)
         clean_path, noisy_path = root / "long.bvh", root / "long-noisy.bvh"
         write_s = read_s = np.inf
         for _ in range(IO_REPEATS):  # the best of a few: the first pays polars' import and first touches

@@ -50,7 +50,8 @@ def train_engine(
     test: Sequence[tuple[str, Motion]] = (),
     datasets: Mapping[str, str] | None = None,
 ) -> TrainingRun:
-    """Fit ``engine`` on ``clips`` ((id, clean motion), one skeleton layout), score it on
+    """Fit ``engine`` on ``clips`` ((id, clean motion), of one skeleton layout unless the
+    engine is :attr:`~workbench.engine.Engine.skeleton_agnostic`), score it on
     ``test`` and save its weights and manifest in ``out``. ``datasets``: each clip's data
     set (default: the first part of its id, ``cmu`` of ``cmu/walk/02_01``). Raises
     EngineError for motions the engine cannot train on (checked before fitting)."""

@@ -14,10 +14,11 @@ ReLU slope 0.2.
 
 * :class:`KaufmannNet` (``cae``, §3.2): 5 encoding units of two 3x3 convolutions with
   leaky ReLU and 2x2 max pooling; 5 decoding units mirroring them, each a strided 3x3
-  transposed convolution (x2 in both axes) and a 3x3 convolution, no weights shared,
-  no activation on the output. Widths 16, 32, 64, 128, 192 (the paper's are about twice
-  that; these train at about 30k frames/s here and keep the float32 weights under
-  10 MB): 2.0M weights, a 2 x T/32 x 192 latent for the 64-row CMU image.
+  transposed convolution (x2 in both axes) and, but in the last, a 3x3 convolution
+  (the output layer follows it), no weights shared, no activation on the output.
+  Widths 16, 32, 64, 128, 192 (the paper's are about twice that; these train at about
+  30k frames/s here and keep the float32 weights under 10 MB): 2.0M weights, a 2 x T/32 x 192
+  latent for the 64-row CMU image.
 * :class:`VanillaNet` (``cae-vanilla``, the "Vanilla AE" of Table 1): one strided 3x3
   convolution per encoding unit and one strided 3x3 transposed convolution per decoding
   unit.

@@ -99,7 +99,8 @@ def _take_weights(body: CanonicalBody, canonical: np.ndarray, observed: np.ndarr
 
 class MSSA(Engine):
     """Robust M-SSA filtering (Lou and Chai 2010): learned spatio-temporal filter bases,
-    Welsch data term, alternating coefficient / IRLS motion updates."""
+    Welsch data term: IRLS, each majoriser minimised exactly by conjugate gradients
+    (``solver=alternating``: the paper's alternating coefficient / motion updates)."""
 
     @dataclass(frozen=True)
     class Params:

@@ -203,8 +203,9 @@ def _in_catalogue(clip: str) -> bool:
         return False
 
 
-def settle(window, timeout_ms: int = 60000) -> None:
-    """Process events until the worker is idle and everything it posted is drawn."""
+def settle(window) -> None:
+    """Process events until the worker is idle and everything it posted is drawn (as long
+    as the engines take: a screenshot of a result waits for it)."""
     from PySide6.QtWidgets import QApplication
 
     session = window.session

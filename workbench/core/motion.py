@@ -39,7 +39,8 @@ class Motion:
     degrees and the local translations (F, T, 3) of the skeleton's T ``translated`` joints
     (default: none, for a skeleton without them).
 
-    Arrays are read-only copies. Compare with :meth:`allclose`. Missing values are NaN
+    Arrays are read-only (shared, not copied, where they already are read-only float64
+    arrays of their own). Compare with :meth:`allclose`. Missing values are NaN
     (only in an :class:`Observation`).
     """
 

@@ -272,11 +272,9 @@ def vectors_to_rotation(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return R
 
 
-def kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+def kabsch(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Rotations (..., 3, 3) best mapping vectors ``source`` (..., N, 3) onto ``target``
-    (..., N, 3) in the weighted least-squares sense (no translation, proper rotations)."""
-    if weights is not None:
-        source = source * weights[..., None]
+    (..., N, 3) in the least-squares sense (no translation, proper rotations)."""
     H = np.swapaxes(source, -1, -2) @ target  # (..., 3, 3)
     U, _, Vt = np.linalg.svd(H)
     d = np.sign(np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)))

@@ -219,9 +219,6 @@ class Skeleton:
     def allclose(self, other: "Skeleton", atol: float = 1e-6) -> bool:
         return self.same_layout(other) and np.allclose(self.offsets, other.offsets, atol=atol)
 
-    def with_offsets(self, offsets: np.ndarray) -> "Skeleton":
-        return self.replace(offsets=offsets)
-
     def replace(self, **changes) -> "Skeleton":
         """A copy with the given fields changed (validated as a new Skeleton)."""
         return dataclasses.replace(self, **changes)

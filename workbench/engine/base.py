@@ -111,10 +111,6 @@ def _of_role(params: typing.Any, role: str) -> dict[str, typing.Any]:
     return {name: getattr(params, name) for name, r in param_roles(params).items() if r == role}
 
 
-#: the engines to point a user to for takes no trained engine models
-CLASSICAL = "kalman, gaussian, butterworth, lerp, spline"
-
-
 class EngineError(ValueError):
     """A user-facing problem with an engine: bad spec, wrong skeleton, unusable input.
 
@@ -578,9 +574,10 @@ class Engine:
         ------
         EngineError
             Saying which rule they break (a take of fewer than 2 frames, with NaN or
-            infinite values, or that never moves teaches nothing), or what the body view
-            refuses (a joint below the body root moving by position channels; the
-            message names the classical engines to clean such takes with).
+            infinite values, or that never moves teaches nothing; skeletons of several
+            layouts, or frame rates, where the engine trains on one; a skeleton a
+            universal variant cannot map whole), or what resampling to the model's rate
+            refuses (a take that would grow past its frame limit).
         """
         from .view import model_motion, resample
 

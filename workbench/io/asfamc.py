@@ -374,11 +374,6 @@ def _finish_bone(bone: _Bone, bones: dict[str, _Bone], path: Path) -> None:
     bones[bone.name] = bone
 
 
-def read_asf_model(path: str | Path) -> AsfModel:
-    """Parse an ASF file: its Skeleton and the bone frames and dofs an AMC needs."""
-    return _parse_asf(Path(path))
-
-
 def read_asf(path: str | Path) -> Skeleton:
     """Read an ASF skeleton (see the module docstring for the mapping)."""
     return _parse_asf(Path(path)).skeleton
