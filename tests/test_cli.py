@@ -23,10 +23,24 @@ def test_split_engine_specs():
 
 def test_engines_and_data_listing(capsys):
     assert main(["engines"]) == 0
-    assert "identity" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "identity" in out and "source: Lou and Chai 2010" in out  # each engine's paper
     assert main(["data", "--split", "test"]) == 0
     out = capsys.readouterr().out
     assert "cmu/walk/35_31" in out and "cmu/walk/02_01" not in out
+
+
+def test_the_corruption_models_are_listed_where_a_spec_is_asked_for_and_a_bad_value_is_named_before_any_take_is_read(tmp_path, capsys):
+    from workbench.corruption import MODELS
+
+    for command in ("corrupt", "bench"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        out = capsys.readouterr().out
+        assert all(cls.signature() in out for cls in MODELS.values())
+    for command in (["corrupt", "no-such-take.bvh", "-o", str(tmp_path / "out.bvh")], ["bench", "--engines", "lerp"]):
+        assert main([*command, "--corrupt", "gaps:0.01,-3"]) == 2  # before any take is read (there is none)
+        assert "MEAN (mean gap length, frames) must be a number of frames >= 1" in capsys.readouterr().err
 
 
 def test_corrupt_then_clean(tmp_path, data_root, capsys):

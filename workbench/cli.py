@@ -144,6 +144,8 @@ def cmd_engines(args) -> int:
         )
         flags = "/".join(sorted(info.tasks)) + f", {info.space}" + (", trainable" if info.trainable else "")
         print(f"{name:16s} {info.summary} [{flags}]" + (f"\n{'':16s} parameters: {params}" if params else ""))
+        if info.citation:
+            print(f"{'':16s} source: {info.citation}")
     return 0
 
 
@@ -1061,7 +1063,8 @@ def _whole_number(least: int):
 
 def _corruption_text(text: str) -> str:
     """An argparse type: a corruption spec, not blank (an empty shell variable would
-    otherwise score the clean take, every error 0)."""
+    otherwise score the clean take, every error 0). :func:`main` parses it before the
+    command runs."""
     if not text.strip():
         raise argparse.ArgumentTypeError(
             "empty: give a spec such as angular:0.5+gaps:0.01, or 'none' for the clean take"
@@ -1116,9 +1119,14 @@ def _positive_number(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .corruption import models_help
     from .data import SPLITS
     from .metrics import JOINT_METRICS, METRICS
 
+    corruptions = {  # the models a --corrupt SPEC chains, listed below a command's options
+        "epilog": f"corruption models (SPEC):\n{models_help()}",
+        "formatter_class": argparse.RawDescriptionHelpFormatter,
+    }
     p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
@@ -1202,7 +1210,9 @@ def build_parser() -> argparse.ArgumentParser:
     clip_options(sp, default_split="test")
     sp.set_defaults(func=cmd_inspect)
 
-    sp = sub.add_parser("corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)")
+    sp = sub.add_parser(
+        "corrupt", help="corrupt a clean take reproducibly (BVH + observed-mask sidecar)", **corruptions
+    )
     sp.add_argument("input", type=_given)
     sp.add_argument("-o", "--output", type=_given, required=True)
     sp.add_argument(
@@ -1257,7 +1267,7 @@ def build_parser() -> argparse.ArgumentParser:
     unit_opt(sp)
     sp.set_defaults(func=cmd_clean)
 
-    sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)")
+    sp = sub.add_parser("bench", help="benchmark engines on corrupted clips (markdown table, JSON)", **corruptions)
     sp.add_argument("--engines", required=True, action="append", metavar="SPEC,SPEC")
     sp.add_argument("--corrupt", required=True, type=_corruption_text, metavar="SPEC")
     clip_options(sp, default_split="test")
@@ -1416,6 +1426,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         args = parser.parse_args(["gui"])
     try:
+        if getattr(args, "corrupt", None):  # a spec's fault, before any take is read (a 68 MB one, or a library)
+            from .corruption import parse_corruption
+
+            parse_corruption(args.corrupt)
         return args.func(args)
     except _user_errors() as err:
         print(f"workbench {args.command}: error: {_message(err)}", file=sys.stderr)

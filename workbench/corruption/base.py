@@ -46,8 +46,8 @@ _KINDS: dict[str, tuple[str, bool, float, float]] = {
 @dataclass(frozen=True)
 class Param:
     """One positional parameter of a model: its name in help texts, its kind (which sets
-    the type and the valid range) and its default (``REQUIRED`` if it has none; ``None``
-    means "drawn at random")."""
+    the type and the valid range), what it means (``help``, in the messages that refuse a
+    value) and its default (none: required; ``None`` means "drawn at random")."""
 
     name: str
     kind: str
@@ -58,8 +58,10 @@ class Param:
     def required(self) -> bool:
         return self.default is _REQUIRED
 
-
-REQUIRED = _REQUIRED
+    @property
+    def named(self) -> str:
+        """The parameter as a message names it: ``MEAN (mean gap length, frames)``."""
+        return f"{self.name} ({self.help})"
 
 
 #: the kinds of parameter counted in frames, which also take seconds
@@ -177,9 +179,6 @@ class Model:
     def validate(self) -> None:
         """Checks between parameters (raise CorruptionSpecError)."""
 
-    def _error(self, message: str) -> CorruptionSpecError:
-        return CorruptionSpecError(f"{self.name}: {message}")
-
     @classmethod
     def _check(cls, p: Param, value: Any) -> Any:
         if value is None and not p.required and p.default is None:
@@ -187,22 +186,22 @@ class Model:
         what, integer, lo, hi = _KINDS[p.kind]
         if isinstance(value, Seconds):
             if p.kind not in FRAME_KINDS:
-                raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, not a time in seconds ({value})")
+                raise CorruptionSpecError(f"{cls.name}: {p.named} must be {what}, not a time in seconds ({value})")
             least = 0.0 if lo == 0 else math.nextafter(0.0, 1.0)  # a span must last; a frame index may be 0
             if not (math.isfinite(value.value) and least <= value.value):
                 raise CorruptionSpecError(
-                    f"{cls.name}: {p.name} must be {'>= 0' if lo == 0 else '> 0'} seconds, got {value}"
+                    f"{cls.name}: {p.named} must be {'>= 0' if lo == 0 else '> 0'} seconds, got {value}"
                 )
             return Seconds(value.value + 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {value!r}")
+            raise CorruptionSpecError(f"{cls.name}: {p.named} must be {what}, got {value!r}")
         x = float(value)
         if not math.isfinite(x):
-            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {format_number(x)}")
+            raise CorruptionSpecError(f"{cls.name}: {p.named} must be {what}, got {format_number(x)}")
         if integer and not x.is_integer():
-            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {format_number(x)}")
+            raise CorruptionSpecError(f"{cls.name}: {p.named} must be {what}, got {format_number(x)}")
         if not lo <= x <= hi:
-            raise CorruptionSpecError(f"{cls.name}: {p.name} must be {what}, got {format_number(x)}")
+            raise CorruptionSpecError(f"{cls.name}: {p.named} must be {what}, got {format_number(x)}")
         return int(x) if integer else x + 0.0  # + 0.0 turns -0.0 into 0.0
 
     @classmethod
@@ -233,7 +232,7 @@ class Model:
             except ValueError:
                 what = _KINDS[p.kind][0] + (" (or seconds, as in 2s)" if p.kind in FRAME_KINDS else "")
                 raise CorruptionSpecError(
-                    f"{cls.name}: {p.name} must be {what}, got {text!r}; usage: {cls.signature()}"
+                    f"{cls.name}: {p.named} must be {what}, got {text!r}; usage: {cls.signature()}"
                 ) from None
             values.append(Seconds(number) if seconds else number)
         return cls(*values)  # type: ignore[call-arg]
