@@ -30,7 +30,7 @@ def test_engines_and_data_listing(capsys):
     assert "cmu/walk/35_31" in out and "cmu/walk/02_01" not in out
 
 
-def test_the_corruption_models_are_listed_where_a_spec_is_asked_for_and_a_bad_value_is_named_before_any_take_is_read(tmp_path, capsys):
+def test_corruption_models_are_listed_and_a_bad_spec_is_refused_before_any_take_is_read(tmp_path, capsys):
     from workbench.corruption import MODELS
 
     for command in ("corrupt", "bench"):
@@ -550,6 +550,19 @@ def test_train_on_another_skeleton_then_clean_with_its_weights(tmp_path, data_ro
     assert read_bvh(cleaned).skeleton.n_joints == 43
     assert main(["train", f"mssa:weights={out}"]) == 2
     assert "to train, leave it out" in capsys.readouterr().err
+
+
+def test_train_keeps_the_skeleton_most_takes_have_not_the_first_one(tmp_path, data_root, capsys):
+    takes = tmp_path / "takes"
+    takes.mkdir()
+    (takes / "a-stray.bvh").write_bytes((data_root / "cmu-daz" / "jump" / "13_11.bvh").read_bytes())  # listed first
+    for name in ("02_01", "35_31"):
+        (takes / f"{name}.bvh").write_bytes((data_root / "cmu" / "walk" / f"{name}.bvh").read_bytes())
+    out = tmp_path / "w"
+    assert main(["train", "kalman-learned", "--data", str(takes), "--out", str(out)]) == 0
+    assert "the 2 clips of the skeleton most have, leaving out 1 of other skeletons" in capsys.readouterr().err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["skeleton_signature"] == read_bvh(takes / "02_01.bvh").skeleton.signature()
 
 
 def test_train_refuses_before_training_what_would_lose_weights(tmp_path, data_root, monkeypatch, capsys):

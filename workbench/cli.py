@@ -15,6 +15,7 @@ import math
 import os
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -887,12 +888,17 @@ def cmd_train(args) -> int:
     first = train[0].load()
     engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
     loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
-    layout = first.skeleton.signature()
+    # the skeleton most clips have (on a tie, the first clip's): a stray take of another rig does not decide
+    layout = Counter(m.skeleton.signature() for _, m in loaded).most_common(1)[0][0]
     used = [(c, m) for c, m in loaded if engine.skeleton_agnostic or m.skeleton.signature() == layout]
     if len(used) < len(loaded):
         universal = f"{engine.info.name}:{UNIVERSAL}=true"
         pooled = f" (`{universal}` trains on several)" if hasattr(engine.params, UNIVERSAL) else ""
-        print(f"note: training on the {len(used)} clips of the first clip's skeleton only{pooled}", file=sys.stderr)
+        print(
+            f"note: training on the {len(used)} clips of the skeleton most have, leaving out "
+            f"{len(loaded) - len(used)} of other skeletons{pooled}",
+            file=sys.stderr,
+        )
     engine.training_motions([m for _, m in used])  # the checks fit makes, before loading the test clips
     if args.promote:  # where the promoted weights go, before the training
         named = [name.strip() for name in dataset.split(",")] if dataset else []  # in the order given
