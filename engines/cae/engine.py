@@ -10,12 +10,11 @@ network completes the image of a take and IK turns it back into angles (the pape
    ``partial_hole_frames`` where the root is observed, if :func:`workbench.engine.smoothing.angles_bridge_holes`
    finds the noise allows (ours: the network was trained on whole frames and whole joints missing).
    Both are bridged along the path of :func:`workbench.engine.smoothing.smooth_and_fill`.
-2. The image at the network's rate (the paper's 60 fps; all else at 120), reflected to a multiple
-   of the network's ``time_multiple`` (32 frames; ``holden``'s 2), normalised, holes bridged or
-   zeroed (``input_fill``), the mask as a second channel, is completed in one pass and resampled
-   back. Its mirror, and for a 120-fps network its reversal (:func:`.representation.reverse_time`),
-   are completed in the same batch and averaged (ours, ``views``: the network learnt these
-   symmetries only approximately); a Gaussian (``output_sigma_frames``) removes its ripple.
+2. The image at the network's rate (the paper's 60 fps; all else at 120), reflected to a multiple of the
+   network's ``time_multiple`` (32 frames; ``holden``'s 2), normalised, holes bridged or zeroed (``input_fill``),
+   the mask as a second channel, is completed in one pass and resampled back. Its mirror, and for a 120-fps
+   network its reversal (:func:`.representation.reverse_time`), are completed in the same batch and averaged
+   (ours, ``views``: the network learnt them only roughly); a Gaussian (``output_sigma_frames``) removes ripple.
 3. The root's floor track is the observed one, the predicted velocities integrated across its gaps;
    ``raw_positions`` (F, J, 3) is the network's output on it. With ``anchor`` the observed track is
    smoothed first (:func:`anchored_trajectory`: the image is root-relative, so the root's noise would
