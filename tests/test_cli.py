@@ -623,7 +623,7 @@ def test_clean_says_which_weights_it_used(tmp_path, data_root, capsys):
 
 def test_train_pools_the_skeletons_a_universal_variant_maps_and_records_both_terms(tmp_path, data_root, capsys):
     """cae:universal=true trains on the CMU and Bandai train splits together (one tiny
-    epoch here); the plain cae keeps the first clip's skeleton only, and says how to pool."""
+    epoch here); the plain cae keeps the skeleton most of the takes have, and says how to pool."""
     out = tmp_path / "u"
     spec = "cae:universal=true,frames_per_epoch=512,window_frames=64,batch_size=4,pose_copies=0"
     assert main(["train", spec, "--dataset", "cmu,bandai", "--share", "5", "--epochs", "1", "--out", str(out)]) == 0

@@ -885,10 +885,9 @@ def cmd_train(args) -> int:
         train = share(train, args.share)
         if not train:
             raise UserError(f"--share {args.share:g} keeps no clip of the training split: name a larger share")
-    first = train[0].load()
-    engine.training_motions([first])  # a skeleton it cannot train on, before loading every take
-    loaded = [(train[0], first)] + [(c, c.load()) for c in train[1:]]
-    # the skeleton most clips have (on a tie, the first clip's): a stray take of another rig does not decide
+    loaded = [(c, c.load()) for c in train]
+    # the skeleton most clips have (on a tie, the first clip's): a stray take of another rig, a still calibration
+    # take among them, does not decide, nor stop the training before the check below
     layout = Counter(m.skeleton.signature() for _, m in loaded).most_common(1)[0][0]
     used = [(c, m) for c, m in loaded if engine.skeleton_agnostic or m.skeleton.signature() == layout]
     if len(used) < len(loaded):
@@ -943,10 +942,7 @@ def cmd_train(args) -> int:
 # -- the app (gui, report, screenshots) ---------------------------------------------------
 def cmd_gui(args) -> int:
     from .app.main import run_gui
-    from .corruption import parse_corruption
 
-    if args.corrupt is not None:
-        parse_corruption(args.corrupt)  # a bad spec stops here, with its message
     specs = split_engine_specs(args.engine) if args.engine else None
     if args.measure_fps is not None:
         return _measure_fps(args, specs)

@@ -1,6 +1,6 @@
 """The one training loop of EBF, EBD, BF and NN (PyTorch): windows sampled as runs of
 consecutive centre frames, Adam with a cosine learning-rate schedule; the loss the mean
-per-frame RMS error in degrees (EBF's) or the mean squared error in training stds (EBD's),
+per-frame RMS error in degrees (EBF's, BF's and NN's) or the mean squared error in training stds (EBD's),
 as :func:`train` says.
 
 Each epoch the engine makes fresh corrupted copies of the training clips (``Corpus``); the

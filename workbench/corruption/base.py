@@ -60,8 +60,9 @@ class Param:
 
     @property
     def named(self) -> str:
-        """The parameter as a message names it: ``MEAN (mean gap length, frames)``."""
-        return f"{self.name} ({self.help})"
+        """The parameter as a message names it: ``MEAN (mean gap length, frames)`` (a
+        default the help states is left out: the message is about the value given)."""
+        return f"{self.name} ({self.help.split(' (default')[0]})"
 
 
 #: the kinds of parameter counted in frames, which also take seconds
@@ -190,7 +191,7 @@ class Model:
             least = 0.0 if lo == 0 else math.nextafter(0.0, 1.0)  # a span must last; a frame index may be 0
             if not (math.isfinite(value.value) and least <= value.value):
                 raise CorruptionSpecError(
-                    f"{cls.name}: {p.named} must be {'>= 0' if lo == 0 else '> 0'} seconds, got {value}"
+                    f"{cls.name}: {p.name} must be {'>= 0' if lo == 0 else '> 0'} seconds, got {value}"
                 )
             return Seconds(value.value + 0.0)
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):

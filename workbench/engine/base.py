@@ -576,8 +576,9 @@ class Engine:
             Saying which rule they break (a take of fewer than 2 frames, with NaN or
             infinite values, or that never moves teaches nothing; skeletons of several
             layouts, or frame rates, where the engine trains on one; a skeleton a
-            universal variant cannot map whole), or what resampling to the model's rate
-            refuses (a take that would grow past its frame limit).
+            universal variant cannot map whole; a take a ``--mapping`` file does not
+            fit), or what resampling to the model's rate refuses (a take that would grow
+            past its frame limit).
         """
         from .view import model_motion, resample
 
