@@ -711,9 +711,9 @@ def cmd_bench(args) -> int:
     if args.json:  # before the benchmark's minutes, not after
         from .io.atomic import check_writable
 
-        check_writable(args.json)
         if Path(args.json).suffix.lower() != ".json":  # a take or a data set's MANIFEST.csv is never overwritten
             raise UserError(f"--json {args.json}: the scores are written as JSON; name the file with the .json suffix")
+        check_writable(args.json)  # (a probe file beside it: only for a name that could be written)
     if args.long:
         return _bench_long(args, specs)
     chosen = _bench_clips(args)
@@ -1120,15 +1120,22 @@ def _positive_number(text: str) -> float:
     return value
 
 
+class _CorruptionModelsHelp(argparse.HelpFormatter):
+    """Help that ends with the corruption models a ``--corrupt SPEC`` chains
+    (:func:`workbench.corruption.models_help`, as printed), imported only when the help
+    is shown: every other command starts without them."""
+
+    def format_help(self) -> str:
+        from .corruption import models_help
+
+        return f"{super().format_help()}\ncorruption models (SPEC):\n{models_help()}\n"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    from .corruption import models_help
     from .data import SPLITS
     from .metrics import JOINT_METRICS, METRICS
 
-    corruptions = {  # the models a --corrupt SPEC chains, listed below a command's options
-        "epilog": f"corruption models (SPEC):\n{models_help()}",
-        "formatter_class": argparse.RawDescriptionHelpFormatter,
-    }
+    corruptions = {"formatter_class": _CorruptionModelsHelp}  # a --corrupt SPEC's models below the options
     p = argparse.ArgumentParser(prog="workbench", description=__doc__.split("\n\n")[0])
     p.add_argument("--version", action="version", version=f"mocap-workbench {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
