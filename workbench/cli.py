@@ -711,9 +711,9 @@ def cmd_bench(args) -> int:
     if args.json:  # before the benchmark's minutes, not after
         from .io.atomic import check_writable
 
+        check_writable(args.json)  # first: a folder or a file in the way is named as such, not by its suffix
         if Path(args.json).suffix.lower() != ".json":  # a take or a data set's MANIFEST.csv is never overwritten
             raise UserError(f"--json {args.json}: the scores are written as JSON; name the file with the .json suffix")
-        check_writable(args.json)  # (a probe file beside it: only for a name that could be written)
     if args.long:
         return _bench_long(args, specs)
     chosen = _bench_clips(args)
