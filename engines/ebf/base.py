@@ -100,17 +100,20 @@ class WindowEngine(Engine):
     def state_arrays(self) -> dict[str, np.ndarray]:
         from workbench.engine.torch_support import module_arrays
 
+        steps = {} if self.norm_.step_std is None else {"norm_step_std": self.norm_.step_std}
         return {
             **module_arrays(self.net_, "net."),
             "norm_mean": self.norm_.mean,
             "norm_std": self.norm_.std,
+            **steps,
             "loss_history": np.asarray(self.loss_history_, np.float32),
         }
 
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from workbench.engine.torch_support import load_module_arrays
 
-        self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float))
+        step_std = np.asarray(arrays["norm_step_std"], float) if "norm_step_std" in arrays else None
+        self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float), step_std)
         net = self._build_net(self.norm_.mean.size - 3)
         load_module_arrays(net, arrays, "net.")
         self._use_net(net)
@@ -153,6 +156,12 @@ class WindowEngine(Engine):
         """The network sees the width kalman would smooth the take with
         (:func:`.features.smoothing_context`)."""
         return getattr(self.params, "smoothing_context", False)
+
+    @property
+    def step_inputs(self) -> bool:
+        """The network reads each frame's angle steps from the frame before, not its angles
+        (:class:`.features.Normaliser`)."""
+        return getattr(self.params, "step_inputs", False)
 
     def _frame_data(self, observation: Observation) -> FrameData:
         return frame_data(
@@ -238,7 +247,7 @@ class WindowEngine(Engine):
         from .training import Corpus, train
 
         layout = Layout.of(motions[0].skeleton)
-        self.norm_ = Normaliser.fit(motions, layout)
+        self.norm_ = Normaliser.fit(motions, layout, steps=self.step_inputs)
         net = self._build_net(layout.n_channels)
 
         def truth(m: Motion) -> np.ndarray:

@@ -33,6 +33,11 @@ STD_FLOOR = 1.0
 FEATURE_BLOCK = 4096
 #: range of :func:`noise_context` (natural log of a noise std in training stds)
 NOISE_CONTEXT_RANGE = (-8.0, 2.0)
+#: smallest std of a channel's frame-to-frame steps used for step inputs (degrees)
+STEP_STD_FLOOR = 0.05
+#: step inputs are clipped to this many step stds either way (a wrap or a flip at gimbal
+#: lock, or a glitch, stays one bounded input)
+STEP_CLIP = 20.0
 
 
 def root_angular_velocity_dps(
@@ -95,13 +100,17 @@ def circular_mean_deg(angles_deg: np.ndarray) -> np.ndarray:
 @dataclass
 class Normaliser:
     """Per-feature mean and std (floored at STD_FLOOR) of the clean training frames:
-    C angle channels (degrees) then 3 root angular velocities (deg/s)."""
+    C angle channels (degrees) then 3 root angular velocities (deg/s); and, for step
+    inputs, ``step_std`` (C,): the std of each angle channel's frame-to-frame steps
+    (degrees, floored at STEP_STD_FLOOR), else None."""
 
     mean: np.ndarray
     std: np.ndarray
+    step_std: np.ndarray | None = None
 
     @classmethod
-    def fit(cls, motions: list[Motion], layout: Layout) -> "Normaliser":
+    def fit(cls, motions: list[Motion], layout: Layout, steps: bool = False) -> "Normaliser":
+        """The statistics of ``motions``; ``steps``: also their steps' ``step_std``."""
         X = [m.channels for m in motions]
         reference = circular_mean_deg(np.concatenate([x[:, layout.columns] for x in X]))
         feats = []
@@ -110,7 +119,11 @@ class Normaliser:
             ang = anchor_turns(x[:, layout.columns], reference)
             feats.append(np.concatenate([ang, layout.root_velocity(x, m.fps)], axis=1))
         F = np.concatenate(feats)
-        return cls(F.mean(axis=0), np.maximum(F.std(axis=0), STD_FLOOR))
+        step_std = None
+        if steps:
+            steps = np.concatenate([np.diff(f[:, :-3], axis=0) for f in feats])
+            step_std = np.maximum(steps.std(axis=0), STEP_STD_FLOOR)
+        return cls(F.mean(axis=0), np.maximum(F.std(axis=0), STD_FLOOR), step_std)
 
     @property
     def angle_mean(self) -> np.ndarray:
@@ -120,8 +133,18 @@ class Normaliser:
     def angle_std(self) -> np.ndarray:
         return self.std[:-3]
 
-    def __call__(self, features: np.ndarray) -> np.ndarray:
-        return (features - self.mean) / self.std
+    def __call__(self, angles: np.ndarray, velocity: np.ndarray, before: np.ndarray) -> np.ndarray:
+        """(N, C + 3) network inputs of N consecutive frames' ``angles`` (N, C) degrees and
+        root ``velocity`` (N, 3) deg/s, given the angles of the frame ``before`` them (C,)
+        (the first frame's own at a take's start): the angles normalised, or with
+        ``step_std`` their steps from the frame before in step stds (clipped to
+        ±STEP_CLIP), which do not depend on the pose; the velocity normalised."""
+        if self.step_std is None:
+            angle_inputs = (angles - self.angle_mean) / self.angle_std
+        else:
+            steps = np.diff(angles, axis=0, prepend=before[None])
+            angle_inputs = np.clip(steps / self.step_std, -STEP_CLIP, STEP_CLIP)
+        return np.concatenate([angle_inputs, (velocity - self.mean[-3:]) / self.std[-3:]], axis=1)
 
 
 @dataclass
@@ -189,7 +212,7 @@ def frame_data(
     velocity = layout.root_velocity(X, observation.motion.fps)
     for start in range(0, F, FEATURE_BLOCK):  # float64 arithmetic, float32 kept: no whole-take temporaries
         block = slice(start, start + FEATURE_BLOCK)
-        inputs[block, : C + 3] = norm(np.concatenate([seen[block], velocity[block]], axis=1))
+        inputs[block, : C + 3] = norm(seen[block], velocity[block], seen[max(start - 1, 0)])
     if with_mask:
         inputs[:, C + 3 : 2 * C + 3] = ~missing
     if n_context:

@@ -16,28 +16,27 @@ it (:mod:`.root`; ``root_sigma_frames=0`` passes them through); gaps are bridged
 linearly first (use ``ebd>ebf`` for data with gaps).
 
 Variants: ``bias=true`` also predicts a per-channel bias (degrees) that is subtracted
-(trained on angular, constant-bias and sinusoidal-bias noise); ``free=true`` predicts
-31 free filter weights per channel (softmax) instead of a Gaussian; ``positions=true``
-(our addition) is also trained on joint-position noise solved back to angles (a fourth
-copy of every clip with ``spatial:0.5``, ``spatial:1`` or ``spatial-ends:0.5,0.1``), as
-marker noise reaches a real take's angles: the paper's angular noise is independent
-per channel, position noise is not. ``noise_context=true`` (ours) also shows the network
-the take's own noise std per channel (:func:`.features.noise_context`, as kalman estimates
-it): a 31-frame window cannot tell fast motion from noise, a whole take can (so it does not
-stream); ``smoothing_context=true`` (ours) likewise shows it the width kalman's smoother
-would take for each whole channel (:func:`.features.smoothing_context`).
-``quadratic=true`` (ours) fits a parabola under the predicted Gaussian weights instead
-of taking their mean (:func:`.nets.local_quadratic_weights`): no flattened peaks.
-Each variant has its own weights folder, ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
+(trained on angular, constant-bias and sinusoidal-bias noise); ``free=true`` predicts 31 free
+filter weights per channel (softmax) instead of a Gaussian. Ours: ``positions=true`` is also
+trained on joint-position noise solved back to angles (a fourth copy of every clip with
+``spatial:0.5``, ``spatial:1`` or ``spatial-ends:0.5,0.1``): marker noise is not independent
+per channel. ``noise_context=true`` also shows the network the take's own noise std per
+channel (:func:`.features.noise_context`, as kalman estimates it: a window cannot tell fast
+motion from noise, a whole take can; so it does not stream), and ``smoothing_context=true``
+the width kalman's smoother would take for each whole channel
+(:func:`.features.smoothing_context`). ``quadratic=true`` fits a parabola under the predicted
+Gaussian weights instead of taking their mean (:func:`.nets.local_quadratic_weights`: no
+flattened peaks). ``step_inputs=true`` gives the network each frame's angle steps from the
+frame before instead of its angles (:class:`.features.Normaliser`). Each variant has its own
+weights folder, ``weights/ebf/<dataset>``, ``weights/ebf-bias/<dataset>``, ...
 
-Diagnostics, (F, D) over the whole channel matrix (D = 3 + 3J): ``filter_sigma_frames``,
-the filter's std in frames (free filters: the std of the weights; quadratic ones: the std
-of the Gaussian under the fit; the root's channels: the root filter's), and with
-``bias=true`` ``bias`` in degrees (already subtracted; 0 on the root's channels).
+Diagnostics, (F, D) over the channel matrix (D = 3 + 3J): ``filter_sigma_frames``, the filter's
+std in frames (free filters: the weights' std; quadratic: the Gaussian's under the fit; root
+channels: the root filter's); with ``bias=true``, ``bias`` (degrees, subtracted; 0 on the root).
 
-Training: the train split, every clip every epoch (played at a random speed within ±50 %)
-with fresh angular noise of 0.1, 0.5 and 0.9 channel stds; loss: the per-frame RMS of the
-error (L2 norm in degrees) between filtered and clean angles, averaged over frames; Adam.
+Training: every clip of the train split every epoch (at a random speed within ±50 %) with
+fresh angular noise of 0.1, 0.5 and 0.9 channel stds; loss: the mean over frames of the
+frame's RMS error (degrees) of filtered against clean angles; Adam.
 """
 
 from __future__ import annotations
@@ -244,6 +243,10 @@ class EBF(FilterEngine):
         #: the predicted Gaussian weights a local quadratic fit instead of a mean (our
         #: addition: it follows peaks and fast motion that a mean flattens and lags)
         quadratic: bool = trained(False)
+        #: the network reads each frame's angle steps from the frame before instead of its
+        #: angles (our addition: inputs that do not depend on the pose, so the widths it
+        #: learns carry over to styles it has not seen)
+        step_inputs: bool = trained(False)
 
         def __post_init__(self) -> None:
             super().__post_init__()

@@ -159,7 +159,8 @@ class FilterStream:
             self._window.arrays["rough"][self._window.count - 2] = roughness(
                 np.stack(list(self._recent)[-4:]), self.unit_cm
             )[0]
-        code = self.net.encode(self.engine.norm_(np.concatenate([values, velocity])))
+        before = self._window.last()["values"] if self._window.count else values  # (for step inputs)
+        code = self.net.encode(self.engine.norm_(values[None], velocity[None], before)[0])
         frame_fields = dict(code=code, values=values, root=root, rough=np.nan)
         if len(self._recent) == 1:
             for _ in range(RADIUS):  # the first frame repeated before the take

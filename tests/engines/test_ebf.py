@@ -588,6 +588,35 @@ def test_take_context_variants_fit_clean_and_refuse_to_stream(tiny, context):
         engine.stream(tiny[1].skeleton, tiny[1].fps)
 
 
+def test_step_inputs_do_not_depend_on_the_pose_and_stream_as_they_clean(tiny, tmp_path):
+    """The angle inputs are steps from the frame before in training step stds (0 on the
+    first frame), unchanged when a channel is shifted by a constant; the steps' stds travel
+    with the weights, and a stream computes the same steps offline cleaning does."""
+    engine = registry.create("ebf:step_inputs=true,epochs=1,lstm_units=8,batch_windows=64,bf16=false", pretrained=False)
+    engine.fit(tiny[:1])
+    assert engine.variant == "ebf-lstm_units8-step_inputs"
+    obs = parse_corruption("angular:0.5").apply(tiny[1], seed=0)
+    layout = Layout.of(obs.skeleton)
+    norm = engine.norm_
+    inputs = engine._frame_data(obs).inputs[:, : layout.n_channels]
+    values = unwrap_deg(obs.motion.channels[:, layout.columns])
+    expected = np.clip(np.diff(values, axis=0, prepend=values[:1]) / norm.step_std, -20, 20)
+    assert np.allclose(inputs, expected, atol=1e-4) and not inputs[0].any()
+    shifted = obs.motion.channels.copy()
+    shifted[:, layout.columns[3]] += 30.0
+    moved = engine._frame_data(Observation(obs.motion.with_channels(shifted))).inputs
+    assert np.array_equal(moved[:, : layout.n_channels], engine._frame_data(obs).inputs[:, : layout.n_channels])
+    offline = engine.clean(obs).motion.channels
+    engine.save(tmp_path)
+    again = EBF().load(tmp_path)
+    assert np.array_equal(again.norm_.step_std, norm.step_std)
+    assert np.array_equal(again.clean(obs).motion.channels, offline)
+    stream = again.stream(obs.skeleton, obs.motion.fps)
+    out = [row for frame in obs.motion.channels if (row := stream.push(frame)) is not None]
+    out += list(stream.flush())
+    assert np.abs(np.array(out) - offline).max() < 1e-5
+
+
 def test_positions_variant_also_trains_on_joint_position_noise(tiny):
     """Every clip gets a fourth training copy, with spatial noise: it moves the root too,
     which angular noise leaves alone."""
