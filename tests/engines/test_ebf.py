@@ -635,7 +635,13 @@ def test_ablations_have_committed_weights(name, walk):
 
 
 @pytest.mark.parametrize(
-    "name", ["ebf:quadratic=true", "ebf:quadratic=true,noise_context=true", "ebf:quadratic=true,smoothing_context=true"]
+    "name",
+    [
+        "ebf:quadratic=true",
+        "ebf:quadratic=true,noise_context=true",
+        "ebf:quadratic=true,smoothing_context=true",
+        "ebf:quadratic=true,smoothing_context=true,step_inputs=true",
+    ],
 )
 def test_studio_variants_have_bandai_weights_only(name, studio_take, walk):
     engine = registry.create(name)
