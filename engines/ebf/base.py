@@ -15,7 +15,7 @@ import numpy as np
 
 from workbench.core.channels import retime, unwrap_deg
 from workbench.core.motion import Motion, Observation
-from workbench.engine import CleanResult, Engine, training
+from workbench.engine import CleanResult, Engine, EngineError, training
 
 from .features import RADIUS, FrameData, Layout, Normaliser, anchor_turns, frame_data, window_index
 
@@ -112,9 +112,16 @@ class WindowEngine(Engine):
     def load_state_arrays(self, arrays: Mapping[str, np.ndarray], manifest: Mapping) -> None:
         from workbench.engine.torch_support import load_module_arrays
 
+        mean, std = np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float)
         step_std = np.asarray(arrays["norm_step_std"], float) if "norm_step_std" in arrays else None
-        self.norm_ = Normaliser(np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float), step_std)
-        net = self._build_net(self.norm_.mean.size - 3)
+        if self.step_inputs != (step_std is not None) or (step_std is not None and step_std.shape != mean[:-3].shape):
+            raise EngineError(
+                f"weights do not fit step_inputs={self.step_inputs}: they hold "
+                + ("no steps' stds" if step_std is None else f"steps' stds of shape {step_std.shape}")
+                + "; they were saved by another version or by hand: train again"
+            )
+        self.norm_ = Normaliser(mean, std, step_std)
+        net = self._build_net(mean.size - 3)
         load_module_arrays(net, arrays, "net.")
         self._use_net(net)
         self.loss_history_ = np.asarray(arrays.get("loss_history", []), float)

@@ -1,10 +1,10 @@
 """``ebf``: Encoder-Bidirectional-Filter (Mall et al. 2017 §3), and its ablations ``bf``
 (no encoder) and ``nn`` (feed-forward over the window).
 
-Per frame the network sees the C joint-angle channels (the rotation channels of every
-joint but the root; unwrapped, normalised with the training mean and std) and the root's
-3 angular velocities (its own frame, deg/s over the last 1/15 s: heading-invariant
-context, not output).
+Per frame the network sees the C joint-angle channels (the rotation channels of every joint
+but the root; unwrapped, normalised with the training mean and std, or their steps with
+``step_inputs``) and the root's 3 angular velocities (its own frame, deg/s over the last
+1/15 s: heading-invariant context, not output).
 EBF: 4 tanh layers encode each frame to 64 numbers; 2 bidirectional LSTM layers
 (``lstm_units`` per direction, input dropout 0.5) read the 31-frame window around each
 output frame (15 back, 15 ahead); 4 fully connected layers (tanh, then exp) give one

@@ -588,10 +588,14 @@ def test_take_context_variants_fit_clean_and_refuse_to_stream(tiny, context):
         engine.stream(tiny[1].skeleton, tiny[1].fps)
 
 
-def test_step_inputs_do_not_depend_on_the_pose_and_stream_as_they_clean(tiny, tmp_path):
+def test_step_inputs_do_not_depend_on_the_pose_and_stream_as_they_clean(tiny, tmp_path, monkeypatch):
     """The angle inputs are steps from the frame before in training step stds (0 on the
-    first frame), unchanged when a channel is shifted by a constant; the steps' stds travel
-    with the weights, and a stream computes the same steps offline cleaning does."""
+    first frame; across the blocks frame_data works in too), unchanged when a channel is
+    shifted by a constant; the steps' stds travel with the weights (weights without them
+    are refused), and a stream computes the same steps offline cleaning does."""
+    from engines.ebf import features
+
+    monkeypatch.setattr(features, "FEATURE_BLOCK", 7)
     engine = registry.create("ebf:step_inputs=true,epochs=1,lstm_units=8,batch_windows=64,bf16=false", pretrained=False)
     engine.fit(tiny[:1])
     assert engine.variant == "ebf-lstm_units8-step_inputs"
@@ -605,12 +609,19 @@ def test_step_inputs_do_not_depend_on_the_pose_and_stream_as_they_clean(tiny, tm
     shifted = obs.motion.channels.copy()
     shifted[:, layout.columns[3]] += 30.0
     moved = engine._frame_data(Observation(obs.motion.with_channels(shifted))).inputs
-    assert np.array_equal(moved[:, : layout.n_channels], engine._frame_data(obs).inputs[:, : layout.n_channels])
+    assert np.allclose(moved[:, : layout.n_channels], inputs, atol=1e-5)
     offline = engine.clean(obs).motion.channels
     engine.save(tmp_path)
     again = EBF().load(tmp_path)
     assert np.array_equal(again.norm_.step_std, norm.step_std)
     assert np.array_equal(again.clean(obs).motion.channels, offline)
+    arrays = engine.state_arrays()
+    with pytest.raises(EngineError, match="step_inputs=True: they hold no steps' stds"):
+        registry.create("ebf:step_inputs=true,lstm_units=8", pretrained=False).load_state_arrays(
+            {k: v for k, v in arrays.items() if k != "norm_step_std"}, {}
+        )
+    with pytest.raises(EngineError, match="step_inputs=False"):
+        registry.create("ebf:lstm_units=8", pretrained=False).load_state_arrays(arrays, {})
     stream = again.stream(obs.skeleton, obs.motion.fps)
     out = [row for frame in obs.motion.channels if (row := stream.push(frame)) is not None]
     out += list(stream.flush())
