@@ -180,7 +180,7 @@ def test_generated_specs_round_trip(parts):
         ("gaps:0.1,12,0", ["gaps", "MAX"]),
         ("gaps:0.1,12,2.5", ["gaps", "MAX", "whole"]),
         ("block:1.5", ["block", "N", "whole"]),
-        ("block:2x", ["block", "N", "seconds, as in 2s", "'2x'"]),
+        ("block:2x", ["block", "N", "seconds (as in 2s)", "'2x'"]),
         ("block:-1s", ["block", "N", ">= 0 seconds", "-1s"]),
         ("gaps:0.1,0s", ["gaps", "MEAN", "> 0 seconds"]),
         ("angular:2s", ["angular", "K", "'2s'"]),

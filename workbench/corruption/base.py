@@ -231,7 +231,7 @@ class Model:
             try:
                 number = float(text[:-1] if seconds else text)
             except ValueError:
-                what = _KINDS[p.kind][0] + (" (or seconds, as in 2s)" if p.kind in FRAME_KINDS else "")
+                what = _KINDS[p.kind][0] + (", or seconds (as in 2s)" if p.kind in FRAME_KINDS else "")
                 raise CorruptionSpecError(
                     f"{cls.name}: {p.named} must be {what}, got {text!r}; usage: {cls.signature()}"
                 ) from None
