@@ -114,7 +114,7 @@ class WindowEngine(Engine):
 
         mean, std = np.asarray(arrays["norm_mean"], float), np.asarray(arrays["norm_std"], float)
         step_std = np.asarray(arrays["norm_step_std"], float) if "norm_step_std" in arrays else None
-        if self.step_inputs != (step_std is not None) or (step_std is not None and step_std.shape != mean[:-3].shape):
+        if (None if step_std is None else step_std.shape) != (mean[:-3].shape if self.step_inputs else None):
             raise EngineError(
                 f"weights do not fit step_inputs={self.step_inputs}: they hold "
                 + ("no steps' stds" if step_std is None else f"steps' stds of shape {step_std.shape}")

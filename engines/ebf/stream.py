@@ -159,7 +159,8 @@ class FilterStream:
             self._window.arrays["rough"][self._window.count - 2] = roughness(
                 np.stack(list(self._recent)[-4:]), self.unit_cm
             )[0]
-        before = self._window.last()["values"] if self._window.count else values  # (for step inputs)
+        previous = self._window.count - 1  # the frame before, for step inputs (none before the take's first)
+        before = self._window.arrays["values"][previous] if previous >= 0 else values
         code = self.net.encode(self.engine.norm_(values[None], velocity[None], before)[0])
         frame_fields = dict(code=code, values=values, root=root, rough=np.nan)
         if len(self._recent) == 1:
